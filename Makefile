@@ -1,0 +1,72 @@
+# Gradus build. `make` builds build/gradus and build/gradus.so; `make test`
+# and `make demo` first install missing Debian packages (as root).
+PKGS      := lua5.4 yaml-0.1 readline libpng
+DEB_PKGS  := gcc make pkg-config liblua5.4-dev lua5.4 libyaml-dev libreadline-dev libpng-dev
+CC        ?= cc
+CSTD      := -std=c11 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE
+WARN      := -Wall -Wextra
+PKG_CFLAGS = $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
+PKG_LIBS   = $(shell pkg-config --libs $(PKGS) 2>/dev/null)
+CFLAGS    ?= -O2 -g
+ALL_CFLAGS = $(CSTD) $(WARN) $(CFLAGS) -fPIC -pthread -Iengine $(PKG_CFLAGS)
+LIBS       = $(PKG_LIBS) -lm -pthread -ldl
+SAN        = -O1 -g -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
+
+ALL_SRC   := $(wildcard engine/*.c)
+CORE_SRC  := $(filter-out engine/bind%.c engine/main.c,$(ALL_SRC))
+BIND_SRC  := $(filter engine/bind%.c,$(ALL_SRC))
+HDRS      := $(wildcard engine/*.h)
+CORE_OBJ  := $(CORE_SRC:engine/%.c=build/obj/%.o)
+BIND_OBJ  := $(BIND_SRC:engine/%.c=build/obj/%.o)
+SAN_OBJ   := $(CORE_SRC:engine/%.c=build/asan/obj/%.o)
+CTESTS    := $(patsubst tests/c/%.c,%,$(wildcard tests/c/test_*.c))
+
+.PHONY: all deps check-deps test test-run demo demo-run bench clean ctests
+all: check-deps build/gradus build/gradus.so
+
+# Install what is missing (fresh Debian 12, as root).
+deps:
+	@missing=""; for p in $(DEB_PKGS); do dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
+	if [ -n "$$missing" ]; then \
+	  if [ "$$(id -u)" != 0 ]; then echo "gradus: missing Debian packages:$$missing; run as root: apt-get install -y$$missing" >&2; exit 1; fi; \
+	  echo "gradus: installing$$missing"; \
+	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing) >/dev/null || exit 1; \
+	fi
+
+check-deps:
+	@pkg-config --exists $(PKGS) 2>/dev/null || { echo "gradus: missing libraries; install them with: apt-get install -y $(DEB_PKGS)  (or run 'make deps' as root)" >&2; exit 1; }
+
+build/obj/%.o: engine/%.c $(HDRS) | build/obj
+	$(CC) $(ALL_CFLAGS) -c $< -o $@
+build/asan/obj/%.o: engine/%.c $(HDRS) | build/asan/obj
+	$(CC) $(ALL_CFLAGS) $(SAN) -c $< -o $@
+build/obj build/asan/obj build/tests build/asan/tests:
+	mkdir -p $@
+
+build/gradus: $(CORE_OBJ) $(BIND_OBJ) build/obj/main.o
+	$(CC) -o $@ $^ $(LIBS) -Wl,-E
+build/gradus.so: $(CORE_OBJ) $(BIND_OBJ)
+	$(CC) -shared -o $@ $^ $(filter-out -llua5.4,$(LIBS))
+
+build/tests/%: tests/c/%.c tests/c/check.h $(CORE_OBJ) | build/tests
+	$(CC) $(ALL_CFLAGS) -o $@ $< $(CORE_OBJ) $(LIBS)
+build/asan/tests/%: tests/c/%.c tests/c/check.h $(SAN_OBJ) | build/asan/tests
+	$(CC) $(ALL_CFLAGS) $(SAN) -o $@ $< $(SAN_OBJ) $(LIBS)
+
+ctests: $(CTESTS:%=build/tests/%) $(CTESTS:%=build/asan/tests/%)
+
+test: deps
+	@$(MAKE) --no-print-directory test-run
+test-run: all ctests
+	@bash tests/run.sh
+
+demo: deps
+	@$(MAKE) --no-print-directory demo-run
+demo-run: all
+	./build/gradus run recipes/demo.lua -o out/demo.cli --stats out/demo.yaml
+
+bench: all
+	@bash bench/run.sh
+
+clean:
+	rm -rf build

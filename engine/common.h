@@ -1,0 +1,51 @@
+/* common.h: error reporting, growable arrays and atomic file output shared by
+ * every engine file. The core never prints or exits: functions return a status
+ * code and fill a gr_err. */
+#ifndef GR_COMMON_H
+#define GR_COMMON_H
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+
+enum {
+  GR_OK = 0,
+  GR_EARG,   /* bad argument: the message names the parameter and its value */
+  GR_EMEM,   /* out of memory, or a request too large to allocate */
+  GR_EIO,    /* file system error: the message names the path */
+  GR_EPARSE, /* malformed input file: the message names path:line[:col] */
+  GR_ENUM,   /* NaN or infinity where a finite number is needed */
+  GR_EGEOM   /* degenerate or invalid geometry */
+};
+
+typedef struct gr_err {
+  int code;       /* GR_OK when nothing went wrong */
+  char msg[512];  /* one line, no trailing newline */
+} gr_err;
+
+/* Fill e (may be NULL) and return code. */
+int gr_fail(gr_err *e, int code, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+static inline void gr_err_clear(gr_err *e) { if (e) { e->code = GR_OK; e->msg[0] = 0; } }
+
+/* Make *p hold at least `need` elements of `elsize` bytes; *cap is updated.
+ * Returns GR_OK or GR_EMEM (then *p is unchanged). */
+int gr_grow(void *pp, size_t *cap, size_t need, size_t elsize);
+
+/* Atomic output: write into a temporary file beside `path`, then rename it
+ * into place, so a reader never sees a half-written file and a failure leaves
+ * nothing behind. */
+typedef struct gr_atomic {
+  FILE *fp;         /* write here */
+  char path[4096];  /* final path */
+  char tmp[4096];   /* temporary path */
+} gr_atomic;
+int gr_atomic_open(gr_atomic *a, const char *path, gr_err *e);
+/* Flush, fsync-free close and rename. On any write error (e.g. disk full)
+ * the temporary is removed and GR_EIO returned. */
+int gr_atomic_commit(gr_atomic *a, gr_err *e);
+void gr_atomic_abort(gr_atomic *a); /* remove the temporary; safe to call twice */
+
+/* Wall-clock seconds (monotonic). */
+double gr_now(void);
+
+#endif

@@ -1,0 +1,98 @@
+/* field.h: scalar fields phi(p) over 3-D space, evaluated over batches of
+ * points (structure of arrays). The zero set of a field is its surface; a
+ * field is negative on its "inside". Fields are reference counted and
+ * immutable after construction, so combinations can share children.
+ * Thread safety: gr_field_eval may run from several threads at once on one
+ * field unless gr_field_threadsafe() says 0 (Lua-function fields). */
+#ifndef GR_FIELD_H
+#define GR_FIELD_H
+#include "common.h"
+
+typedef struct gr_field gr_field;
+
+/* Callback kinds, for fields computed elsewhere (Lua functions, distance
+ * fields). Return GR_OK or an error code after filling e. */
+typedef int (*gr_field_fn)(void *ud, size_t n, const double *x,
+                           const double *y, const double *z, double *out,
+                           gr_err *e);
+typedef int (*gr_field_gradfn)(void *ud, size_t n, const double *x,
+                               const double *y, const double *z, double *gx,
+                               double *gy, double *gz, gr_err *e);
+
+/* ---- TPMS catalogue (SPEC.md section 2) ---- */
+int gr_tpms_count(void);
+const char *gr_tpms_name(int i);
+int gr_tpms_lookup(const char *name); /* index, or -1 */
+/* "primitive, gyroid, ..." for error messages. */
+const char *gr_tpms_names(void);
+/* phi(p) - level for the named surface, cell size `cell` (mm, > 0), cells
+ * tiled from `origin` (the domain min corner; NULL = 0,0,0), so that
+ * X = 2*pi/cell*(x - origin_x - cell/2). Analytic gradient. Unknown name:
+ * GR_EARG listing the valid names. */
+gr_field *gr_field_tpms(const char *name, double cell, const double *origin,
+                        double level, gr_err *e);
+
+/* Information about a TPMS field (for the voxel signature and exact mode);
+ * returns 0 if f is not a plain TPMS field. */
+typedef struct gr_tpms_info {
+  int surface;       /* catalogue index */
+  double cell;       /* L, mm */
+  double origin[3];  /* mm */
+  double level;      /* c */
+} gr_tpms_info;
+int gr_field_tpms_info(const gr_field *f, gr_tpms_info *info);
+
+/* ---- other kinds ---- */
+/* Expression in x, y, z (mm) with pi, see expr.h. */
+gr_field *gr_field_expr(const char *src, gr_err *e);
+/* Callback field. grad may be NULL: central differences are used then.
+ * free_ud (may be NULL) is called on ud when the field is released. */
+gr_field *gr_field_callback(gr_field_fn fn, gr_field_gradfn grad, void *ud,
+                            void (*free_ud)(void *), int threadsafe,
+                            const char *describe);
+/* Combinations take new references to their arguments. */
+gr_field *gr_field_min(gr_field *a, gr_field *b);       /* union */
+gr_field *gr_field_max(gr_field *a, gr_field *b);       /* intersection */
+gr_field *gr_field_negate(gr_field *a);                 /* complement */
+/* (1-w) a + w b, w a field clamped to [0,1] (hybrid lattices). */
+gr_field *gr_field_blend(gr_field *a, gr_field *b, gr_field *w);
+gr_field *gr_field_translate(gr_field *a, const double d[3]); /* a(p - d) */
+gr_field *gr_field_scale(gr_field *a, double s);              /* s*a(p/s) */
+
+gr_field *gr_field_ref(gr_field *f);   /* returns f */
+void gr_field_free(gr_field *f);       /* drops one reference; NULL is fine */
+int gr_field_threadsafe(const gr_field *f);
+/* Upper bound on |grad phi| (INFINITY if unknown): d(p) >= |phi(p)|/K. */
+double gr_field_lipschitz(const gr_field *f);
+/* Short text such as "primitive(L=2, level=0)". */
+const char *gr_field_describe(const gr_field *f);
+
+/* Evaluate at n points. NaN/inf results fail with GR_ENUM naming the point. */
+int gr_field_eval(const gr_field *f, size_t n, const double *x,
+                  const double *y, const double *z, double *out, gr_err *e);
+int gr_field_grad(const gr_field *f, size_t n, const double *x,
+                  const double *y, const double *z, double *gx, double *gy,
+                  double *gz, gr_err *e);
+
+/* ---- sampling ---- */
+/* Samples v[i + nx*(j + ny*k)] at (x0 + i*hx, y0 + j*hy, z0 + k*hz). */
+typedef struct gr_grid3 {
+  int nx, ny, nz;
+  double x0, y0, z0, hx, hy, hz; /* mm */
+  double *v;
+} gr_grid3;
+typedef struct gr_grid2 {
+  int nx, ny;
+  double x0, y0, hx, hy, z; /* mm; z is the plane's height */
+  double *v;                /* v[i + nx*j] */
+} gr_grid2;
+/* n samples per axis (>= 2) spanning lo..hi inclusive. A grid too large for
+ * memory is refused before allocating, with the estimate in the message. */
+gr_grid3 *gr_grid3_sample(const gr_field *f, const double lo[3],
+                          const double hi[3], const int n[3], gr_err *e);
+gr_grid2 *gr_grid2_sample(const gr_field *f, double z, const double lo[2],
+                          const double hi[2], const int n[2], gr_err *e);
+void gr_grid3_free(gr_grid3 *g);
+void gr_grid2_free(gr_grid2 *g);
+
+#endif

@@ -1,0 +1,89 @@
+/* paths.h: the 2-D data of one layer.
+ *  - gr_rings: closed polygons (section boundaries, contour loops) with
+ *    orientation and nesting: outer rings counter-clockwise, holes clockwise.
+ *  - gr_layer: the scan vectors of one layer, as blocks of points tagged with
+ *    vector kind, shape and laser; the unit of CLI output and of pictures. */
+#ifndef GR_PATHS_H
+#define GR_PATHS_H
+#include "common.h"
+
+/* Ring r has the points xy[2*start[r] .. 2*start[r+1]), mm. The closing
+ * segment from the last point back to the first is implicit (the first point
+ * is NOT repeated). */
+typedef struct gr_rings {
+  double *xy;
+  size_t npts, cappts;   /* points, capacity (points) */
+  size_t *start;         /* nrings + 1 offsets (start[0] = 0) */
+  size_t nrings, caprings;
+  int *parent;           /* enclosing ring or -1; filled by gr_rings_nest */
+} gr_rings;
+
+gr_rings *gr_rings_new(void);
+void gr_rings_free(gr_rings *r); /* NULL is fine */
+void gr_rings_clear(gr_rings *r);
+/* Append one ring of n points (copied). */
+int gr_rings_add(gr_rings *r, const double *xy, size_t n);
+/* Build a ring point by point: gr_rings_point ... gr_rings_close. */
+int gr_rings_point(gr_rings *r, double x, double y);
+int gr_rings_close(gr_rings *r); /* ends the ring begun by the points since the last close */
+static inline size_t gr_ring_len(const gr_rings *r, size_t i) { return r->start[i + 1] - r->start[i]; }
+static inline const double *gr_ring_xy(const gr_rings *r, size_t i) { return r->xy + 2 * r->start[i]; }
+double gr_ring_area(const gr_rings *r, size_t i);   /* signed, CCW > 0, mm^2 */
+double gr_ring_length(const gr_rings *r, size_t i); /* perimeter, mm */
+/* Sum of signed areas: with correct orientation, the area of the region. */
+double gr_rings_area(const gr_rings *r);
+/* Even-odd point-in-region test (1 inside). */
+int gr_rings_contains(const gr_rings *r, double x, double y);
+/* Compute parent[] (the smallest ring containing each ring) and reorient:
+ * rings at even depth CCW (outer), odd depth CW (holes). Rings must not cross. */
+int gr_rings_nest(gr_rings *r, gr_err *e);
+void gr_rings_translate(gr_rings *r, double dx, double dy);
+int gr_rings_copy(gr_rings *dst, const gr_rings *src); /* dst is cleared first */
+int gr_rings_append(gr_rings *dst, const gr_rings *src, double dx, double dy);
+
+/* ---- scan vectors ---- */
+enum gr_kind { GR_CONTOUR = 0, GR_HATCH = 1, GR_EDGE = 2, GR_NKINDS = 3 };
+enum gr_shape {
+  GR_CLOSED = 0,   /* closed polyline; the first point IS repeated at the end */
+  GR_OPEN = 1,     /* open polyline (a joined zigzag, a thin-wall centre line) */
+  GR_SEGMENTS = 2  /* independent hatch vectors: n is even, pairs of points */
+};
+typedef struct gr_block {
+  int shape;       /* enum gr_shape */
+  int kind;        /* enum gr_kind */
+  int laser;       /* 0-based laser index */
+  int dir;         /* CLI direction: 1 CCW outer, 0 CW hole, 2 open (polylines) */
+  size_t start, n; /* points xy[2*start .. 2*(start+n)) */
+} gr_block;
+typedef struct gr_layer {
+  double z;        /* CLI layer height z_k, mm (geometry from z_k - t/2) */
+  double *xy;
+  size_t npts, cappts;
+  gr_block *b;
+  size_t nb, capb;
+  int thin_walls;  /* regions scanned by the thin-wall rule */
+} gr_layer;
+
+gr_layer *gr_layer_new(double z);
+void gr_layer_free(gr_layer *l);
+void gr_layer_clear(gr_layer *l, double z);
+/* Append a block of n points (copied). Returns GR_OK/GR_EMEM. */
+int gr_layer_add(gr_layer *l, int shape, int kind, int laser, int dir,
+                 const double *xy, size_t n);
+/* Append one hatch vector to the last block if it is a GR_SEGMENTS block of
+ * the same kind and laser, else start a new block. */
+int gr_layer_add_segment(gr_layer *l, int kind, int laser, double x0,
+                         double y0, double x1, double y1);
+int gr_layer_append(gr_layer *dst, const gr_layer *src, double dx, double dy);
+/* Scan length of a block and of all blocks of a kind (mm). */
+double gr_block_length(const gr_layer *l, const gr_block *b);
+typedef struct gr_layer_stats {
+  size_t vectors[GR_NKINDS];  /* scan vectors (segments) per kind */
+  double length[GR_NKINDS];   /* scan length per kind, mm */
+  size_t jumps;               /* moves between blocks/segments with the laser off */
+  double jump_length;         /* mm, in block order */
+} gr_layer_stats;
+void gr_layer_stats_get(const gr_layer *l, gr_layer_stats *s);
+void gr_layer_bounds(const gr_layer *l, double lo[2], double hi[2]);
+
+#endif
