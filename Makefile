@@ -70,3 +70,8 @@ bench: all
 
 clean:
 	rm -rf build
+
+# Benchmarks: bench/bench_*.c are C programs linked with the core.
+build/bench/%: bench/%.c $(CORE_OBJ)
+	@mkdir -p build/bench
+	$(CC) $(ALL_CFLAGS) -O3 -o $@ $< $(CORE_OBJ) $(LIBS)
