@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# The gradus command line: errors point at recipe lines, unknown -D names are
+# reported, YAML errors carry line and column, the REPL reads stdin.
+G=${GRADUS:-build/gradus}
+d=$(mktemp -d); trap 'rm -rf "$d"' EXIT
+pass() { echo "PASS test_host: $1"; }
+fail() { echo "FAIL test_host: $1: $2"; }
+expect() { # name, pattern, text
+  if printf '%s' "$3" | grep -qE -- "$2"; then pass "$1"; else fail "$1" "wanted /$2/ in: $3"; fi
+}
+
+cat > "$d/r.lua" <<'L'
+local n = gradus.param("n", 3)
+local mode = gradus.param("mode", "a")
+if mode == "bad_arg" then gradus.yaml.decode(42, {}) end
+if mode == "yaml" then gradus.yaml.decode("a: [1,\nb: 2\n", "p.yaml") end
+if mode == "global" then print(undefined_thing) end
+if mode == "error" then
+  error("custom failure")
+end
+print("n=" .. n)
+L
+out=$($G run "$d/r.lua" -D n=7 2>&1); rc=$?
+expect "run prints" "^n=7$" "$out"; [ $rc = 0 ] && pass "run exit 0" || fail "run exit 0" "rc=$rc"
+out=$($G run "$d/r.lua" -D mode=error 2>&1); rc=$?
+expect "error names recipe line" "r.lua:7: custom failure" "$out"; [ $rc != 0 ] && pass "error exit non-zero" || fail "error exit" "rc=$rc"
+out=$($G run "$d/r.lua" -D mode=bad_arg 2>&1)
+expect "C error points at the recipe line" "r.lua:3: bad argument" "$out"
+out=$($G run "$d/r.lua" -D mode=yaml 2>&1)
+expect "YAML error line and column" "p.yaml:[0-9]+:[0-9]+: " "$out"
+out=$($G run "$d/r.lua" -D mode=global 2>&1)
+expect "undeclared global" "r.lua:5: read of undeclared global 'undefined_thing'" "$out"
+out=$($G run "$d/r.lua" -D nn=4 2>&1)
+expect "unknown -D reported" "-D nn was never read .*did you mean 'n'" "$out"
+out=$($G run "$d/r.lua" -D n=abc 2>&1); rc=$?
+expect "bad -D value" "parameter 'n': a number is expected, got 'abc'" "$out"; [ $rc != 0 ] && pass "bad -D exit" || fail "bad -D exit" "rc=$rc"
+out=$(printf '1+2\nlocal t = {\n  a = 5 }\nprint(t == nil)\nmath.sqrt(16)\n' | $G 2>&1)
+expect "REPL evaluates stdin" "^3$" "$out"; expect "REPL multi-line + expression" "^4.0$" "$out"
+out=$($G --version); expect "version" "^gradus [0-9]+\.[0-9]+\.[0-9]+" "$out"
+out=$($G help); expect "help" "usage: gradus run RECIPE" "$out"
+out=$($G frobnicate 2>&1); rc=$?
+expect "unknown command" "unknown command 'frobnicate'" "$out"; [ $rc != 0 ] && pass "unknown command exit" || fail "unknown command exit" "rc=$rc"
+out=$($G run /nonexistent.lua 2>&1); rc=$?
+expect "missing recipe" "cannot open recipe /nonexistent.lua" "$out"
+# stock lua5.4 can require the C module
+if command -v lua5.4 >/dev/null; then
+  out=$(cd "$d" && LUA_CPATH="$OLDPWD/build/?.so" lua5.4 -e 'local g = require "gradus"; print(g.version, type(g.param), g.param("x", 5))' 2>&1)
+  expect "require from stock lua5.4" "^[0-9.]+	function	5$" "$out"
+fi
