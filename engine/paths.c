@@ -199,6 +199,7 @@ void gr_layer_clear(gr_layer *l, double z) {
   l->npts = 0;
   l->nb = 0;
   l->thin_walls = 0;
+  l->area = 0;
 }
 
 int gr_layer_add(gr_layer *l, int shape, int kind, int laser, int dir,
@@ -241,6 +242,7 @@ int gr_layer_append(gr_layer *dst, const gr_layer *src, double dx, double dy) {
     dst->b[dst->nb++] = b;
   }
   dst->thin_walls += src->thin_walls;
+  dst->area += src->area;
   return GR_OK;
 }
 

@@ -62,6 +62,7 @@ typedef struct gr_layer {
   gr_block *b;
   size_t nb, capb;
   int thin_walls;  /* regions scanned by the thin-wall rule */
+  double area;     /* solid section area of the layer, mm^2 (0 if unknown) */
 } gr_layer;
 
 gr_layer *gr_layer_new(double z);

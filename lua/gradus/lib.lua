@@ -237,22 +237,32 @@ function gradus.progress(label, done, total)
   if done >= total then io.stderr:write("\n") end
 end
 
--- Help registry: gradus.doc[function or table] = text; help(x) prints it.
-gradus.doc = gradus.doc or setmetatable({}, { __mode = "k" })
+--- gradus.help(x): help text of a function, table or object of the module
+-- (from doc/api/*.md).
 function gradus.help(x)
-  local d = gradus.doc[x]
-  if d then return d end
-  if type(x) == "table" then
-    local names = {}
-    for k, v in pairs(x) do
-      if type(k) == "string" and not k:match("^_") then
-        names[#names + 1] = k .. (type(v) == "function" and "()" or (type(v) == "table" and ".*" or ""))
-      end
-    end
-    table.sort(names)
-    return "contents: " .. table.concat(names, ", ")
+  return require("gradus.help").text(x)
+end
+
+--- gradus.sweep{recipe=, params={name={v1,v2,...}|"a:b:step"}, jobs=2, dir=}:
+-- run a recipe over the cross product of parameter values (see gradus sweep).
+function gradus.sweep(t)
+  if type(t) ~= "table" or type(t.recipe) ~= "string" then
+    error("bad argument #1 to 'sweep' (table with recipe= expected)", 2)
   end
-  return "no help for " .. tostring(x)
+  local params, order = {}, {}
+  for k, v in pairs(t.params or {}) do
+    order[#order + 1] = k
+    if type(v) == "table" then
+      local s = {}
+      for i, x in ipairs(v) do s[i] = tostring(x) end
+      params[k] = table.concat(s, ",")
+    else
+      params[k] = tostring(v)
+    end
+  end
+  table.sort(order)
+  return require("gradus.commands").run_sweep(t.recipe, params, order,
+    { dir = t.dir or "out/sweep", jobs = t.jobs or 2, quiet = t.quiet })
 end
 
 return gradus

@@ -1,0 +1,121 @@
+-- gradus.lasers: machine profiles (YAML) and laser assignment rules.
+-- A machine profile (see recipes/machine.yaml and doc/formats.md):
+--   lasers: [{name, field: {lo: [x,y], hi: [x,y]}, contour|hatch|edge: {power, speed}}]
+--   jump_speed (mm/s), jump_delay (s per jump), polygon_delay (s per block)
+local gradus = require "gradus"
+local M = {}
+
+local KINDS = { "contour", "hatch", "edge" }
+local DEFAULT_STYLE = {
+  contour = { power = 100, speed = 600 },
+  hatch = { power = 200, speed = 1000 },
+  edge = { power = 80, speed = 500 },
+}
+
+local function bad(src, what, fmt, ...)
+  error(("%s: %s: " .. fmt):format(src, what, ...), 0)
+end
+
+local function positive(src, what, v)
+  if type(v) ~= "number" or not (v > 0) or v == math.huge then
+    bad(src, what, "must be a positive number, got %s", tostring(v))
+  end
+  return v
+end
+
+local function point(src, what, v)
+  if type(v) ~= "table" or type(v[1]) ~= "number" or type(v[2]) ~= "number" then
+    bad(src, what, "must be [x, y] in mm, got %s", tostring(v))
+  end
+  return { v[1], v[2] }
+end
+
+--- M.normalize(profile, source) -> machine with every field checked and
+-- defaults filled. Errors name the source and the field.
+function M.normalize(p, src)
+  src = src or "machine profile"
+  if type(p) ~= "table" then bad(src, "profile", "must be a mapping") end
+  if type(p.lasers) ~= "table" or #p.lasers == 0 then bad(src, "lasers", "must be a non-empty list") end
+  local m = {
+    name = p.name or src,
+    jump_speed = positive(src, "jump_speed", p.jump_speed or 5000),
+    jump_delay = p.jump_delay or 0,
+    polygon_delay = p.polygon_delay or 0,
+    lasers = {},
+  }
+  if type(m.jump_delay) ~= "number" or m.jump_delay < 0 then bad(src, "jump_delay", "must be >= 0 s") end
+  if type(m.polygon_delay) ~= "number" or m.polygon_delay < 0 then bad(src, "polygon_delay", "must be >= 0 s") end
+  for i, l in ipairs(p.lasers) do
+    local w = ("lasers[%d]"):format(i)
+    if type(l) ~= "table" then bad(src, w, "must be a mapping") end
+    local out = { name = l.name or ("laser" .. i) }
+    if l.field ~= nil then
+      out.field = { lo = point(src, w .. ".field.lo", l.field.lo), hi = point(src, w .. ".field.hi", l.field.hi) }
+      if out.field.lo[1] >= out.field.hi[1] or out.field.lo[2] >= out.field.hi[2] then
+        bad(src, w .. ".field", "lo must be below hi")
+      end
+    end
+    for _, k in ipairs(KINDS) do
+      local s = l[k] or DEFAULT_STYLE[k]
+      out[k] = {
+        power = positive(src, w .. "." .. k .. ".power", s.power or DEFAULT_STYLE[k].power),
+        speed = positive(src, w .. "." .. k .. ".speed", s.speed or DEFAULT_STYLE[k].speed),
+      }
+    end
+    m.lasers[i] = out
+  end
+  return m
+end
+
+--- M.load(path) -> machine
+function M.load(path)
+  return M.normalize(gradus.yaml.load(path), path)
+end
+
+--- M.default(n) -> a machine of n identical lasers reaching the whole plate.
+function M.default(n)
+  local p = { name = n .. "-laser default", lasers = {} }
+  for i = 1, n do p.lasers[i] = { name = "laser" .. i } end
+  return M.normalize(p, "default machine")
+end
+
+local function reaches(l, x0, y0, x1, y1)
+  local f = l.field
+  if not f then return true end
+  return x0 >= f.lo[1] - 1e-9 and y0 >= f.lo[2] - 1e-9 and x1 <= f.hi[1] + 1e-9 and y1 <= f.hi[2] + 1e-9
+end
+M.reaches = reaches
+
+--- M.reach(machine, x0, y0, x1, y1) -> list of 0-based laser indices that can
+-- scan the whole box; an error when none can (the fields do not cover the part).
+function M.reach(m, x0, y0, x1, y1)
+  local out = {}
+  for i, l in ipairs(m.lasers) do
+    if reaches(l, x0, y0, x1, y1) then out[#out + 1] = i - 1 end
+  end
+  if #out == 0 then
+    error(("laser fields of '%s' do not cover the part: no laser reaches the voxel [%.3f, %.3f] x [%.3f, %.3f] mm")
+      :format(m.name, x0, x1, y0, y1), 0)
+  end
+  return out
+end
+
+--- M.zones(machine, xmin, xmax) -> rule(x0,y0,x1,y1) -> laser: the part's
+-- x-range cut into equal zones, one per laser; a voxel goes to its zone's
+-- laser if it reaches it, else to the nearest zone's laser that does.
+function M.zones(m, xmin, xmax)
+  local n = #m.lasers
+  return function(x0, y0, x1, y1)
+    local cx = 0.5 * (x0 + x1)
+    local z = math.floor((cx - xmin) / (xmax - xmin) * n)
+    z = math.max(0, math.min(n - 1, z))
+    local best, bd
+    for _, l in ipairs(M.reach(m, x0, y0, x1, y1)) do
+      local d = math.abs(l - z)
+      if not bd or d < bd then best, bd = l, d end
+    end
+    return best
+  end
+end
+
+return M

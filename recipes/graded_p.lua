@@ -1,0 +1,14 @@
+-- One graded Schwarz P job for parameter studies: the half-thickness of
+-- eq. (8) scaled by `amp` (0.1 in the paper), a few cells, a chosen hatch
+-- spacing. Used by recipes/sweep_p.lua; runs on its own too:
+--   gradus run recipes/graded_p.lua -D amp=0.08 -D hatch=0.05 --stats s.yaml
+local lattice = require "gradus.lattice"
+local p = lattice.params()
+local amp = gradus.param("amp", 0.1)
+if not (amp > 0) then error(("amp must be > 0 mm, got %g"):format(amp)) end
+p.thickness = ("%.17g*(2*sin(pi*(w+1)/4)+1)"):format(amp)
+p.cells = gradus.param("cells", "2,2,1")
+p.format = gradus.param("format", "binary")
+local st = lattice.run(p, gradus.output("out/graded_p.cli"))
+print(("amp %.3f mm, hatch %.3f mm: relative density %.3f, scan %.2f m, build %.1f s"):format(amp, p.hatch,
+  st.relative_density, (st.vectors.contour.length + st.vectors.hatch.length) / 1000, st.build_time_s))

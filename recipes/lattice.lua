@@ -1,0 +1,13 @@
+-- The general recipe: a box of graded TPMS cells to a CLI file.
+--   gradus run recipes/lattice.lua -D cells=2,2,1 -o out.cli --stats out.yaml
+-- Parameters (SPEC.md section 7): surface, cell, cells, origin, level, kind,
+-- thickness, layer, hatch, beam_offset, angle, rotation, pattern, contours,
+-- lasers, kb, format; and machine, assign, sequence, mode, res, layers,
+-- pictures (comma-separated layer numbers to draw), split, threads.
+local lattice = require "gradus.lattice"
+local p = lattice.params()
+local out = gradus.output("out/lattice.cli")
+local st = lattice.run(p, out)
+print(("%s: %d layers, %d voxels, %d templates (%d built, %d from the knowledge base), %.1f m of scan vectors, est. build %.0f s")
+  :format(out, st.layers, st.voxels, st.templates.unique, st.templates.built, st.templates.reused,
+    (st.vectors.contour.length + st.vectors.hatch.length) / 1000, st.build_time_s))
