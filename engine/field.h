@@ -45,6 +45,8 @@ int gr_field_tpms_info(const gr_field *f, gr_tpms_info *info);
 /* ---- other kinds ---- */
 /* Expression in x, y, z (mm) with pi, see expr.h. */
 gr_field *gr_field_expr(const char *src, gr_err *e);
+/* Constant field c everywhere (gradient 0). */
+gr_field *gr_field_constant(double c);
 /* Callback field. grad may be NULL: central differences are used then.
  * free_ud (may be NULL) is called on ud when the field is released. */
 gr_field *gr_field_callback(gr_field_fn fn, gr_field_gradfn grad, void *ud,

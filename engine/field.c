@@ -1,0 +1,730 @@
+/* field.c: see field.h. Every kind evaluates a batch of points; combinations
+ * evaluate their children in chunks of CH points through one scratch buffer
+ * allocated per call (not per point, and not on the C stack, so that deep
+ * left-leaning unions cannot overflow a worker thread's stack). */
+#include "field.h"
+#include <math.h>
+#include <stdarg.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+#include "expr.h"
+
+#define CH 256 /* points per chunk in combinations */
+
+enum { K_TPMS, K_EXPR, K_CALLBACK, K_CONST, K_MIN, K_MAX, K_NEG, K_BLEND,
+       K_TRANSLATE, K_SCALE };
+
+struct gr_field {
+  atomic_int refs;        /* references held */
+  int kind;               /* K_* */
+  int threadsafe;         /* 0 if eval must stay on one thread */
+  double lip;             /* upper bound of |grad|, 1/mm times field unit */
+  char desc[256];         /* describe text (truncated) */
+  /* K_TPMS */
+  int surface;            /* catalogue index */
+  double cell;            /* L, mm */
+  double origin[3];       /* min corner, mm */
+  double level;           /* c */
+  double w;               /* 2*pi/L, rad/mm */
+  /* K_EXPR */
+  gr_expr *expr;
+  /* K_CALLBACK */
+  gr_field_fn fn;
+  gr_field_gradfn gradfn; /* NULL: central differences */
+  void *ud;
+  void (*free_ud)(void *);
+  /* K_CONST */
+  double c;
+  /* combinations */
+  gr_field *a, *b, *wf;   /* children (wf: blend weight) */
+  double d[3];            /* translation, mm */
+  double s;               /* scale factor */
+};
+
+/* ---- TPMS catalogue ---- */
+enum { S_PRIMITIVE, S_GYROID, S_DIAMOND, S_IWP, S_NEOVIUS, S_FRD, S_FKS,
+       S_LIDINOID, S_SPLITP, S_OCTO, S_COUNT };
+static const char *const TPMS_NAMES[S_COUNT] = {
+  "primitive", "gyroid", "diamond", "iwp", "neovius", "frd",
+  "fischer_koch_s", "lidinoid", "split_p", "octo"};
+/* Bound of each |d phi / dX| component (sum of |coefficient x derivative
+ * factor| of that component's terms); |grad_X phi| <= sqrt(3) * bound. */
+static const double TPMS_DBOUND[S_COUNT] = {1, 2, 2, 6, 7, 8, 4, 8, 6, 1.6};
+
+int gr_tpms_count(void) { return S_COUNT; }
+const char *gr_tpms_name(int i) { return i >= 0 && i < S_COUNT ? TPMS_NAMES[i] : NULL; }
+int gr_tpms_lookup(const char *name) {
+  for (int i = 0; name && i < S_COUNT; i++)
+    if (!strcmp(name, TPMS_NAMES[i])) return i;
+  return -1;
+}
+const char *gr_tpms_names(void) {
+  return "primitive, gyroid, diamond, iwp, neovius, frd, fischer_koch_s, "
+         "lidinoid, split_p, octo";
+}
+
+/* phi from the sines and cosines of the cell-angle coordinates (X, Y, Z);
+ * g (may be NULL) receives d phi / d(X, Y, Z). Double angles come from the
+ * single ones, so callers that know the trig values (grids) skip libm. */
+static double tpms_trig(int s, double sx, double cx, double sy, double cy, double sz,
+                        double cz, double *g) {
+  double s2x = 2 * sx * cx, s2y = 2 * sy * cy, s2z = 2 * sz * cz;
+  double c2x = 2 * cx * cx - 1, c2y = 2 * cy * cy - 1, c2z = 2 * cz * cz - 1;
+  double phi = 0, gx = 0, gy = 0, gz = 0;
+  switch (s) {
+  case S_PRIMITIVE:
+    phi = cx + cy + cz;
+    gx = -sx; gy = -sy; gz = -sz;
+    break;
+  case S_GYROID:
+    phi = cx * sy + cy * sz + cz * sx;
+    gx = -sx * sy + cz * cx;
+    gy = cx * cy - sy * sz;
+    gz = cy * cz - sz * sx;
+    break;
+  case S_DIAMOND:
+    phi = sx * sy * sz + sx * cy * cz + cx * sy * cz + cx * cy * sz;
+    gx = cx * sy * sz + cx * cy * cz - sx * sy * cz - sx * cy * sz;
+    gy = sx * cy * sz - sx * sy * cz + cx * cy * cz - cx * sy * sz;
+    gz = sx * sy * cz - sx * cy * sz - cx * sy * sz + cx * cy * cz;
+    break;
+  case S_IWP:
+    phi = 2 * (cx * cy + cy * cz + cz * cx) - (c2x + c2y + c2z);
+    gx = -2 * sx * (cy + cz) + 2 * s2x;
+    gy = -2 * sy * (cx + cz) + 2 * s2y;
+    gz = -2 * sz * (cx + cy) + 2 * s2z;
+    break;
+  case S_NEOVIUS:
+    phi = 3 * (cx + cy + cz) + 4 * cx * cy * cz;
+    gx = -3 * sx - 4 * sx * cy * cz;
+    gy = -3 * sy - 4 * cx * sy * cz;
+    gz = -3 * sz - 4 * cx * cy * sz;
+    break;
+  case S_FRD:
+    phi = 4 * cx * cy * cz - (c2x * c2y + c2y * c2z + c2z * c2x);
+    gx = -4 * sx * cy * cz + 2 * s2x * (c2y + c2z);
+    gy = -4 * cx * sy * cz + 2 * s2y * (c2x + c2z);
+    gz = -4 * cx * cy * sz + 2 * s2z * (c2x + c2y);
+    break;
+  case S_FKS:
+    phi = c2x * sy * cz + cx * c2y * sz + sx * cy * c2z;
+    gx = -2 * s2x * sy * cz - sx * c2y * sz + cx * cy * c2z;
+    gy = c2x * cy * cz - 2 * cx * s2y * sz - sx * sy * c2z;
+    gz = -c2x * sy * sz + cx * c2y * cz - 2 * sx * cy * s2z;
+    break;
+  case S_LIDINOID:
+    phi = s2x * cy * sz + s2y * cz * sx + s2z * cx * sy -
+          (c2x * c2y + c2y * c2z + c2z * c2x) + 0.3;
+    gx = 2 * c2x * cy * sz + s2y * cz * cx - s2z * sx * sy + 2 * s2x * (c2y + c2z);
+    gy = -s2x * sy * sz + 2 * c2y * cz * sx + s2z * cx * cy + 2 * s2y * (c2x + c2z);
+    gz = s2x * cy * cz - s2y * sz * sx + 2 * c2z * cx * sy + 2 * s2z * (c2x + c2y);
+    break;
+  case S_SPLITP:
+    phi = 1.1 * (s2x * sz * cy + s2y * sx * cz + s2z * sy * cx) -
+          0.2 * (c2x * c2y + c2y * c2z + c2z * c2x) - 0.4 * (c2x + c2y + c2z);
+    gx = 1.1 * (2 * c2x * sz * cy + s2y * cx * cz - s2z * sy * sx) +
+         0.4 * s2x * (c2y + c2z) + 0.8 * s2x;
+    gy = 1.1 * (-s2x * sz * sy + 2 * c2y * sx * cz + s2z * cy * cx) +
+         0.4 * s2y * (c2x + c2z) + 0.8 * s2y;
+    gz = 1.1 * (s2x * cz * cy - s2y * sx * sz + 2 * c2z * sy * cx) +
+         0.4 * s2z * (c2x + c2y) + 0.8 * s2z;
+    break;
+  case S_OCTO:
+    phi = 0.6 * (cx * cy + cy * cz + cz * cx) - 0.4 * (cx + cy + cz) + 0.25;
+    gx = -0.6 * sx * (cy + cz) + 0.4 * sx;
+    gy = -0.6 * sy * (cx + cz) + 0.4 * sy;
+    gz = -0.6 * sz * (cx + cy) + 0.4 * sz;
+    break;
+  }
+  if (g) { g[0] = gx; g[1] = gy; g[2] = gz; }
+  return phi;
+}
+
+static double tpms_point(int s, double X, double Y, double Z, double *g) {
+  return tpms_trig(s, sin(X), cos(X), sin(Y), cos(Y), sin(Z), cos(Z), g);
+}
+
+/* ---- construction helpers ---- */
+static void setdesc(gr_field *f, const char *fmt, ...) {
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(f->desc, sizeof f->desc, fmt, ap);
+  va_end(ap);
+}
+
+static gr_field *field_new(int kind) {
+  gr_field *f = calloc(1, sizeof *f);
+  if (!f) return NULL;
+  atomic_init(&f->refs, 1);
+  f->kind = kind;
+  f->threadsafe = 1;
+  return f;
+}
+
+gr_field *gr_field_tpms(const char *name, double cell, const double *origin,
+                        double level, gr_err *e) {
+  int s = gr_tpms_lookup(name);
+  if (s < 0) {
+    gr_fail(e, GR_EARG, "unknown TPMS surface '%s' (valid: %s)", name ? name : "(null)",
+            gr_tpms_names());
+    return NULL;
+  }
+  if (!(cell > 0) || !isfinite(cell)) {
+    gr_fail(e, GR_EARG, "cell size must be > 0, got %g", cell);
+    return NULL;
+  }
+  if (!isfinite(level)) {
+    gr_fail(e, GR_EARG, "level must be finite, got %g", level);
+    return NULL;
+  }
+  double o[3] = {0, 0, 0};
+  if (origin) {
+    for (int i = 0; i < 3; i++) {
+      if (!isfinite(origin[i])) {
+        gr_fail(e, GR_EARG, "origin[%d] must be finite, got %g", i + 1, origin[i]);
+        return NULL;
+      }
+      o[i] = origin[i];
+    }
+  }
+  gr_field *f = field_new(K_TPMS);
+  if (!f) { gr_fail(e, GR_EMEM, "out of memory creating a %s field", name); return NULL; }
+  f->surface = s;
+  f->cell = cell;
+  memcpy(f->origin, o, sizeof o);
+  f->level = level;
+  f->w = 2 * M_PI / cell;
+  f->lip = f->w * sqrt(3.0) * TPMS_DBOUND[s];
+  if (o[0] || o[1] || o[2])
+    setdesc(f, "%s(L=%g, origin=(%g, %g, %g), level=%g)", TPMS_NAMES[s], cell, o[0], o[1],
+            o[2], level);
+  else
+    setdesc(f, "%s(L=%g, level=%g)", TPMS_NAMES[s], cell, level);
+  return f;
+}
+
+int gr_field_tpms_info(const gr_field *f, gr_tpms_info *info) {
+  if (!f || f->kind != K_TPMS) return 0;
+  if (info) {
+    info->surface = f->surface;
+    info->cell = f->cell;
+    memcpy(info->origin, f->origin, sizeof info->origin);
+    info->level = f->level;
+  }
+  return 1;
+}
+
+gr_field *gr_field_expr(const char *src, gr_err *e) {
+  static const char *const vars[3] = {"x", "y", "z"};
+  gr_expr *x = gr_expr_compile(src, 3, vars, 0, NULL, NULL, e);
+  if (!x) return NULL;
+  gr_field *f = field_new(K_EXPR);
+  if (!f) {
+    gr_expr_free(x);
+    gr_fail(e, GR_EMEM, "out of memory creating expression field '%s'", src);
+    return NULL;
+  }
+  f->expr = x;
+  f->lip = INFINITY;
+  setdesc(f, "expr(%s)", src);
+  return f;
+}
+
+gr_field *gr_field_constant(double c) {
+  gr_field *f = field_new(K_CONST);
+  if (!f) return NULL;
+  f->c = c;
+  f->lip = 0;
+  setdesc(f, "constant(%g)", c);
+  return f;
+}
+
+gr_field *gr_field_callback(gr_field_fn fn, gr_field_gradfn grad, void *ud,
+                            void (*free_ud)(void *), int threadsafe,
+                            const char *describe) {
+  if (!fn) return NULL;
+  gr_field *f = field_new(K_CALLBACK);
+  if (!f) return NULL;
+  f->fn = fn;
+  f->gradfn = grad;
+  f->ud = ud;
+  f->free_ud = free_ud;
+  f->threadsafe = threadsafe;
+  f->lip = INFINITY;
+  setdesc(f, "%s", describe ? describe : "callback");
+  return f;
+}
+
+static gr_field *combo(int kind, gr_field *a, gr_field *b, gr_field *w) {
+  if (!a || (kind != K_NEG && kind != K_TRANSLATE && kind != K_SCALE && !b) ||
+      (kind == K_BLEND && !w))
+    return NULL;
+  gr_field *f = field_new(kind);
+  if (!f) return NULL;
+  f->a = gr_field_ref(a);
+  f->b = b ? gr_field_ref(b) : NULL;
+  f->wf = w ? gr_field_ref(w) : NULL;
+  f->threadsafe = a->threadsafe && (!b || b->threadsafe) && (!w || w->threadsafe);
+  return f;
+}
+
+gr_field *gr_field_min(gr_field *a, gr_field *b) {
+  gr_field *f = combo(K_MIN, a, b, NULL);
+  if (f) {
+    f->lip = fmax(a->lip, b->lip);
+    setdesc(f, "min(%s, %s)", a->desc, b->desc);
+  }
+  return f;
+}
+
+gr_field *gr_field_max(gr_field *a, gr_field *b) {
+  gr_field *f = combo(K_MAX, a, b, NULL);
+  if (f) {
+    f->lip = fmax(a->lip, b->lip);
+    setdesc(f, "max(%s, %s)", a->desc, b->desc);
+  }
+  return f;
+}
+
+gr_field *gr_field_negate(gr_field *a) {
+  gr_field *f = combo(K_NEG, a, NULL, NULL);
+  if (f) {
+    f->lip = a->lip;
+    setdesc(f, "-(%s)", a->desc);
+  }
+  return f;
+}
+
+/* grad = (1-w) ga + w gb + (b - a) gw: |b - a| is unbounded in general, so
+ * the bound is only finite for a constant weight. */
+gr_field *gr_field_blend(gr_field *a, gr_field *b, gr_field *w) {
+  gr_field *f = combo(K_BLEND, a, b, w);
+  if (f) {
+    f->lip = w->lip == 0 ? fmax(a->lip, b->lip) : INFINITY;
+    setdesc(f, "blend(%s, %s, %s)", a->desc, b->desc, w->desc);
+  }
+  return f;
+}
+
+gr_field *gr_field_translate(gr_field *a, const double d[3]) {
+  if (!d || !isfinite(d[0]) || !isfinite(d[1]) || !isfinite(d[2])) return NULL;
+  gr_field *f = combo(K_TRANSLATE, a, NULL, NULL);
+  if (f) {
+    memcpy(f->d, d, sizeof f->d);
+    f->lip = a->lip;
+    setdesc(f, "translate(%s, (%g, %g, %g))", a->desc, d[0], d[1], d[2]);
+  }
+  return f;
+}
+
+/* s*a(p/s) has gradient grad a(p/s): same bound. s must be finite, != 0. */
+gr_field *gr_field_scale(gr_field *a, double s) {
+  if (!(s != 0) || !isfinite(s)) return NULL;
+  gr_field *f = combo(K_SCALE, a, NULL, NULL);
+  if (f) {
+    f->s = s;
+    f->lip = a->lip;
+    setdesc(f, "scale(%s, %g)", a->desc, s);
+  }
+  return f;
+}
+
+gr_field *gr_field_ref(gr_field *f) {
+  if (f) atomic_fetch_add(&f->refs, 1);
+  return f;
+}
+
+void gr_field_free(gr_field *f) {
+  if (!f || atomic_fetch_sub(&f->refs, 1) != 1) return;
+  gr_expr_free(f->expr);
+  if (f->free_ud) f->free_ud(f->ud);
+  gr_field_free(f->a);
+  gr_field_free(f->b);
+  gr_field_free(f->wf);
+  free(f);
+}
+
+int gr_field_threadsafe(const gr_field *f) { return f ? f->threadsafe : 1; }
+double gr_field_lipschitz(const gr_field *f) { return f ? f->lip : INFINITY; }
+const char *gr_field_describe(const gr_field *f) { return f ? f->desc : "(null)"; }
+
+/* ---- evaluation ---- */
+static int eval_(const gr_field *f, size_t n, const double *x, const double *y,
+                 const double *z, double *out, gr_err *e);
+static int grad_(const gr_field *f, size_t n, const double *x, const double *y,
+                 const double *z, double *gx, double *gy, double *gz, gr_err *e);
+
+static double *scratch(size_t k, const gr_field *f, gr_err *e) {
+  double *s = malloc(k * CH * sizeof *s);
+  if (!s) gr_fail(e, GR_EMEM, "out of memory evaluating %s", f->desc);
+  return s;
+}
+
+static int eval_(const gr_field *f, size_t n, const double *x, const double *y,
+                 const double *z, double *out, gr_err *e) {
+  int rc = GR_OK;
+  double *t = NULL;
+  switch (f->kind) {
+  case K_TPMS: {
+    double w = f->w, h = f->cell / 2;
+    double ox = f->origin[0] + h, oy = f->origin[1] + h, oz = f->origin[2] + h;
+    for (size_t i = 0; i < n; i++)
+      out[i] = tpms_point(f->surface, w * (x[i] - ox), w * (y[i] - oy), w * (z[i] - oz),
+                          NULL) - f->level;
+    return GR_OK;
+  }
+  case K_EXPR: {
+    const double *v[3] = {x, y, z};
+    return gr_expr_eval(f->expr, n, v, out, e);
+  }
+  case K_CALLBACK:
+    return f->fn(f->ud, n, x, y, z, out, e);
+  case K_CONST:
+    for (size_t i = 0; i < n; i++) out[i] = f->c;
+    return GR_OK;
+  case K_NEG:
+    rc = eval_(f->a, n, x, y, z, out, e);
+    for (size_t i = 0; rc == GR_OK && i < n; i++) out[i] = -out[i];
+    return rc;
+  case K_MIN: case K_MAX: case K_BLEND:
+    if (!(t = scratch(2, f, e))) return GR_EMEM;
+    for (size_t o = 0; o < n && rc == GR_OK; o += CH) {
+      size_t m = n - o < CH ? n - o : CH;
+      double *r = out + o, *vb = t, *vw = t + CH;
+      rc = eval_(f->a, m, x + o, y + o, z + o, r, e);
+      if (rc == GR_OK) rc = eval_(f->b, m, x + o, y + o, z + o, vb, e);
+      if (rc == GR_OK && f->kind == K_BLEND) rc = eval_(f->wf, m, x + o, y + o, z + o, vw, e);
+      if (rc != GR_OK) break;
+      if (f->kind == K_MIN)
+        for (size_t i = 0; i < m; i++) r[i] = vb[i] < r[i] ? vb[i] : r[i];
+      else if (f->kind == K_MAX)
+        for (size_t i = 0; i < m; i++) r[i] = vb[i] > r[i] ? vb[i] : r[i];
+      else
+        for (size_t i = 0; i < m; i++) {
+          double w = vw[i] < 0 ? 0 : vw[i] > 1 ? 1 : vw[i];
+          r[i] = (1 - w) * r[i] + w * vb[i];
+        }
+    }
+    free(t);
+    return rc;
+  case K_TRANSLATE: case K_SCALE:
+    if (!(t = scratch(3, f, e))) return GR_EMEM;
+    for (size_t o = 0; o < n && rc == GR_OK; o += CH) {
+      size_t m = n - o < CH ? n - o : CH;
+      double *px = t, *py = t + CH, *pz = t + 2 * CH;
+      for (size_t i = 0; i < m; i++) {
+        if (f->kind == K_TRANSLATE) {
+          px[i] = x[o + i] - f->d[0]; py[i] = y[o + i] - f->d[1]; pz[i] = z[o + i] - f->d[2];
+        } else {
+          px[i] = x[o + i] / f->s; py[i] = y[o + i] / f->s; pz[i] = z[o + i] / f->s;
+        }
+      }
+      rc = eval_(f->a, m, px, py, pz, out + o, e);
+      if (rc == GR_OK && f->kind == K_SCALE)
+        for (size_t i = 0; i < m; i++) out[o + i] *= f->s;
+    }
+    free(t);
+    return rc;
+  }
+  return gr_fail(e, GR_EARG, "unknown field kind %d", f->kind);
+}
+
+/* Central differences with a step relative to the coordinates' size; the
+ * step actually taken ((x+h) - (x-h) in floating point) is the divisor. */
+static int fd_grad(const gr_field *f, size_t n, const double *x, const double *y,
+                   const double *z, double *gx, double *gy, double *gz, gr_err *e) {
+  double *t = scratch(4, f, e);
+  if (!t) return GR_EMEM;
+  int rc = GR_OK;
+  for (size_t o = 0; o < n && rc == GR_OK; o += CH) {
+    size_t m = n - o < CH ? n - o : CH;
+    double *h = t, *q = t + CH, *vp = t + 2 * CH, *vm = t + 3 * CH;
+    for (size_t i = 0; i < m; i++) {
+      double s = fmax(1.0, fmax(fabs(x[o + i]), fmax(fabs(y[o + i]), fabs(z[o + i]))));
+      h[i] = 1e-6 * s;
+    }
+    for (int ax = 0; ax < 3 && rc == GR_OK; ax++) {
+      const double *c = ax == 0 ? x + o : ax == 1 ? y + o : z + o;
+      double *g = ax == 0 ? gx + o : ax == 1 ? gy + o : gz + o;
+      const double *px = ax == 0 ? q : x + o, *py = ax == 1 ? q : y + o,
+                   *pz = ax == 2 ? q : z + o;
+      for (size_t i = 0; i < m; i++) q[i] = c[i] + h[i];
+      rc = eval_(f, m, px, py, pz, vp, e);
+      if (rc != GR_OK) break;
+      for (size_t i = 0; i < m; i++) { g[i] = q[i]; q[i] = c[i] - h[i]; }
+      rc = eval_(f, m, px, py, pz, vm, e);
+      if (rc != GR_OK) break;
+      for (size_t i = 0; i < m; i++) g[i] = (vp[i] - vm[i]) / (g[i] - q[i]);
+    }
+  }
+  free(t);
+  return rc;
+}
+
+static int grad_(const gr_field *f, size_t n, const double *x, const double *y,
+                 const double *z, double *gx, double *gy, double *gz, gr_err *e) {
+  int rc = GR_OK;
+  double *t = NULL;
+  switch (f->kind) {
+  case K_TPMS: {
+    double w = f->w, h = f->cell / 2, g[3];
+    double ox = f->origin[0] + h, oy = f->origin[1] + h, oz = f->origin[2] + h;
+    for (size_t i = 0; i < n; i++) {
+      tpms_point(f->surface, w * (x[i] - ox), w * (y[i] - oy), w * (z[i] - oz), g);
+      gx[i] = w * g[0]; gy[i] = w * g[1]; gz[i] = w * g[2];
+    }
+    return GR_OK;
+  }
+  case K_EXPR:
+    return fd_grad(f, n, x, y, z, gx, gy, gz, e);
+  case K_CALLBACK:
+    if (f->gradfn) return f->gradfn(f->ud, n, x, y, z, gx, gy, gz, e);
+    return fd_grad(f, n, x, y, z, gx, gy, gz, e);
+  case K_CONST:
+    for (size_t i = 0; i < n; i++) gx[i] = gy[i] = gz[i] = 0;
+    return GR_OK;
+  case K_NEG:
+    rc = grad_(f->a, n, x, y, z, gx, gy, gz, e);
+    for (size_t i = 0; rc == GR_OK && i < n; i++) { gx[i] = -gx[i]; gy[i] = -gy[i]; gz[i] = -gz[i]; }
+    return rc;
+  case K_MIN: case K_MAX:
+    /* the gradient of the child that is selected (a on ties) */
+    if (!(t = scratch(5, f, e))) return GR_EMEM;
+    for (size_t o = 0; o < n && rc == GR_OK; o += CH) {
+      size_t m = n - o < CH ? n - o : CH;
+      double *va = t, *vb = t + CH, *bx = t + 2 * CH, *by = t + 3 * CH, *bz = t + 4 * CH;
+      const double *px = x + o, *py = y + o, *pz = z + o;
+      rc = eval_(f->a, m, px, py, pz, va, e);
+      if (rc == GR_OK) rc = eval_(f->b, m, px, py, pz, vb, e);
+      if (rc == GR_OK) rc = grad_(f->a, m, px, py, pz, gx + o, gy + o, gz + o, e);
+      if (rc == GR_OK) rc = grad_(f->b, m, px, py, pz, bx, by, bz, e);
+      if (rc != GR_OK) break;
+      for (size_t i = 0; i < m; i++) {
+        int takeb = f->kind == K_MIN ? vb[i] < va[i] : vb[i] > va[i];
+        if (takeb) { gx[o + i] = bx[i]; gy[o + i] = by[i]; gz[o + i] = bz[i]; }
+      }
+    }
+    free(t);
+    return rc;
+  case K_BLEND:
+    if (!(t = scratch(9, f, e))) return GR_EMEM;
+    for (size_t o = 0; o < n && rc == GR_OK; o += CH) {
+      size_t m = n - o < CH ? n - o : CH;
+      double *va = t, *vb = t + CH, *vw = t + 2 * CH, *bx = t + 3 * CH, *by = t + 4 * CH,
+             *bz = t + 5 * CH, *wx = t + 6 * CH, *wy = t + 7 * CH, *wz = t + 8 * CH;
+      const double *px = x + o, *py = y + o, *pz = z + o;
+      double *ax = gx + o, *ay = gy + o, *az = gz + o;
+      rc = eval_(f->a, m, px, py, pz, va, e);
+      if (rc == GR_OK) rc = eval_(f->b, m, px, py, pz, vb, e);
+      if (rc == GR_OK) rc = eval_(f->wf, m, px, py, pz, vw, e);
+      if (rc == GR_OK) rc = grad_(f->a, m, px, py, pz, ax, ay, az, e);
+      if (rc == GR_OK) rc = grad_(f->b, m, px, py, pz, bx, by, bz, e);
+      if (rc == GR_OK) rc = grad_(f->wf, m, px, py, pz, wx, wy, wz, e);
+      if (rc != GR_OK) break;
+      for (size_t i = 0; i < m; i++) {
+        double w = vw[i], k = vb[i] - va[i];
+        if (w <= 0) { w = 0; k = 0; } else if (w >= 1) { w = 1; k = 0; }
+        ax[i] = (1 - w) * ax[i] + w * bx[i] + k * wx[i];
+        ay[i] = (1 - w) * ay[i] + w * by[i] + k * wy[i];
+        az[i] = (1 - w) * az[i] + w * bz[i] + k * wz[i];
+      }
+    }
+    free(t);
+    return rc;
+  case K_TRANSLATE: case K_SCALE:
+    if (!(t = scratch(3, f, e))) return GR_EMEM;
+    for (size_t o = 0; o < n && rc == GR_OK; o += CH) {
+      size_t m = n - o < CH ? n - o : CH;
+      double *px = t, *py = t + CH, *pz = t + 2 * CH;
+      for (size_t i = 0; i < m; i++) {
+        if (f->kind == K_TRANSLATE) {
+          px[i] = x[o + i] - f->d[0]; py[i] = y[o + i] - f->d[1]; pz[i] = z[o + i] - f->d[2];
+        } else {
+          px[i] = x[o + i] / f->s; py[i] = y[o + i] / f->s; pz[i] = z[o + i] / f->s;
+        }
+      }
+      rc = grad_(f->a, m, px, py, pz, gx + o, gy + o, gz + o, e);
+    }
+    free(t);
+    return rc;
+  }
+  return gr_fail(e, GR_EARG, "unknown field kind %d", f->kind);
+}
+
+/* First non-finite entry of v[0..n) (or of three arrays), or -1. */
+static long first_bad(size_t n, const double *a, const double *b, const double *c) {
+  for (size_t i = 0; i < n; i++)
+    if (!isfinite(a[i]) || (b && !isfinite(b[i])) || (c && !isfinite(c[i]))) return (long)i;
+  return -1;
+}
+
+int gr_field_eval(const gr_field *f, size_t n, const double *x,
+                  const double *y, const double *z, double *out, gr_err *e) {
+  if (!f) return gr_fail(e, GR_EARG, "field is missing (NULL)");
+  int rc = eval_(f, n, x, y, z, out, e);
+  if (rc != GR_OK) return rc;
+  long i = first_bad(n, out, NULL, NULL);
+  if (i >= 0)
+    return gr_fail(e, GR_ENUM, "field %s gave %s at x=%.6g, y=%.6g, z=%.6g", f->desc,
+                   isnan(out[i]) ? "nan" : out[i] > 0 ? "inf" : "-inf", x[i], y[i], z[i]);
+  return GR_OK;
+}
+
+int gr_field_grad(const gr_field *f, size_t n, const double *x,
+                  const double *y, const double *z, double *gx, double *gy,
+                  double *gz, gr_err *e) {
+  if (!f) return gr_fail(e, GR_EARG, "field is missing (NULL)");
+  int rc = grad_(f, n, x, y, z, gx, gy, gz, e);
+  if (rc != GR_OK) return rc;
+  long i = first_bad(n, gx, gy, gz);
+  if (i >= 0)
+    return gr_fail(e, GR_ENUM, "gradient of field %s is not finite at x=%.6g, y=%.6g, z=%.6g",
+                   f->desc, x[i], y[i], z[i]);
+  return GR_OK;
+}
+
+/* ---- sampling ---- */
+#define GRID_LIMIT_BYTES 4294967296.0 /* 4 GiB */
+#define SAMPLE_CHUNK 4096
+
+static int check_axes(int dim, const double *lo, const double *hi, const int *n, gr_err *e) {
+  static const char ax[3] = {'x', 'y', 'z'};
+  for (int i = 0; i < dim; i++) {
+    if (n[i] < 2) return gr_fail(e, GR_EARG, "grid samples along %c must be >= 2, got %d", ax[i], n[i]);
+    if (!isfinite(lo[i]) || !isfinite(hi[i]) || !(hi[i] > lo[i]))
+      return gr_fail(e, GR_EARG, "grid bounds along %c must be finite with hi > lo, got lo=%g, hi=%g",
+                     ax[i], lo[i], hi[i]);
+  }
+  return GR_OK;
+}
+
+/* Evaluate f at `total` grid points whose coordinates coord(k) gives, in
+ * chunks, straight into v. */
+typedef struct grid_axes {
+  int dim;              /* 2 or 3 */
+  int n[3];             /* samples per axis */
+  double lo[3], h[3];   /* start and step, mm */
+  double z;             /* plane height for dim 2 */
+} grid_axes;
+
+/* Plain TPMS fields on a grid: the sines and cosines of each axis' samples
+ * are computed once (nx + ny + nz pairs instead of 3 per sample). */
+static int fill_grid_tpms(const gr_field *f, const grid_axes *g, double *v, gr_err *e) {
+  int nz = g->dim == 3 ? g->n[2] : 1, cnt = g->n[0] + g->n[1] + nz;
+  double *t = malloc(2 * (size_t)cnt * sizeof *t);
+  if (!t) return gr_fail(e, GR_EMEM, "out of memory sampling %s", f->desc);
+  double *s[3] = {t, t + g->n[0], t + g->n[0] + g->n[1]};
+  double *c[3] = {s[0] + cnt, s[1] + cnt, s[2] + cnt};
+  for (int a = 0; a < 3; a++) {
+    int n = a < 2 ? g->n[a] : nz;
+    double o = f->origin[a] + f->cell / 2;
+    for (int i = 0; i < n; i++) {
+      double p = a == 2 && g->dim == 2 ? g->z : g->lo[a] + i * g->h[a];
+      double X = f->w * (p - o);
+      s[a][i] = sin(X);
+      c[a][i] = cos(X);
+    }
+  }
+  size_t q = 0;
+  for (int k = 0; k < nz; k++)
+    for (int j = 0; j < g->n[1]; j++)
+      for (int i = 0; i < g->n[0]; i++)
+        v[q++] = tpms_trig(f->surface, s[0][i], c[0][i], s[1][j], c[1][j], s[2][k], c[2][k],
+                           NULL) - f->level;
+  free(t);
+  return GR_OK;
+}
+
+static int fill_grid(const gr_field *f, const grid_axes *g, size_t total, double *v, gr_err *e) {
+  if (f->kind == K_TPMS) return fill_grid_tpms(f, g, v, e);
+  double *buf = malloc(3 * SAMPLE_CHUNK * sizeof *buf);
+  if (!buf) return gr_fail(e, GR_EMEM, "out of memory sampling %s", f->desc);
+  double *px = buf, *py = buf + SAMPLE_CHUNK, *pz = buf + 2 * SAMPLE_CHUNK;
+  int rc = GR_OK;
+  size_t nx = (size_t)g->n[0], ny = (size_t)g->n[1];
+  for (size_t o = 0; o < total && rc == GR_OK; o += SAMPLE_CHUNK) {
+    size_t m = total - o < SAMPLE_CHUNK ? total - o : SAMPLE_CHUNK;
+    size_t k = o;
+    size_t i = k % nx, j = (k / nx) % ny, l = k / (nx * ny);
+    for (size_t q = 0; q < m; q++) {
+      px[q] = g->lo[0] + (double)i * g->h[0];
+      py[q] = g->lo[1] + (double)j * g->h[1];
+      pz[q] = g->dim == 3 ? g->lo[2] + (double)l * g->h[2] : g->z;
+      if (++i == nx) { i = 0; if (++j == ny) { j = 0; l++; } }
+    }
+    rc = gr_field_eval(f, m, px, py, pz, v + o, e);
+  }
+  free(buf);
+  return rc;
+}
+
+gr_grid3 *gr_grid3_sample(const gr_field *f, const double lo[3],
+                          const double hi[3], const int n[3], gr_err *e) {
+  if (!f || !lo || !hi || !n) { gr_fail(e, GR_EARG, "grid3 sample: missing argument"); return NULL; }
+  if (check_axes(3, lo, hi, n, e)) return NULL;
+  double count = (double)n[0] * n[1] * n[2], bytes = count * sizeof(double);
+  if (bytes > GRID_LIMIT_BYTES || count > (double)SIZE_MAX / sizeof(double)) {
+    gr_fail(e, GR_EMEM, "grid of %d x %d x %d samples needs %.0f MB, over the %.0f MB limit; "
+            "use fewer samples or a smaller box", n[0], n[1], n[2], bytes / 1048576.0,
+            GRID_LIMIT_BYTES / 1048576.0);
+    return NULL;
+  }
+  gr_grid3 *g = calloc(1, sizeof *g);
+  if (g) g->v = malloc((size_t)count * sizeof *g->v);
+  if (!g || !g->v) {
+    free(g);
+    gr_fail(e, GR_EMEM, "out of memory: grid of %d x %d x %d samples needs %.0f MB", n[0], n[1],
+            n[2], bytes / 1048576.0);
+    return NULL;
+  }
+  g->nx = n[0]; g->ny = n[1]; g->nz = n[2];
+  g->x0 = lo[0]; g->y0 = lo[1]; g->z0 = lo[2];
+  g->hx = (hi[0] - lo[0]) / (n[0] - 1);
+  g->hy = (hi[1] - lo[1]) / (n[1] - 1);
+  g->hz = (hi[2] - lo[2]) / (n[2] - 1);
+  grid_axes a = {3, {n[0], n[1], n[2]}, {lo[0], lo[1], lo[2]}, {g->hx, g->hy, g->hz}, 0};
+  if (fill_grid(f, &a, (size_t)count, g->v, e)) { gr_grid3_free(g); return NULL; }
+  return g;
+}
+
+gr_grid2 *gr_grid2_sample(const gr_field *f, double z, const double lo[2],
+                          const double hi[2], const int n[2], gr_err *e) {
+  if (!f || !lo || !hi || !n) { gr_fail(e, GR_EARG, "grid2 sample: missing argument"); return NULL; }
+  if (check_axes(2, lo, hi, n, e)) return NULL;
+  if (!isfinite(z)) { gr_fail(e, GR_EARG, "plane height z must be finite, got %g", z); return NULL; }
+  double count = (double)n[0] * n[1], bytes = count * sizeof(double);
+  if (bytes > GRID_LIMIT_BYTES || count > (double)SIZE_MAX / sizeof(double)) {
+    gr_fail(e, GR_EMEM, "grid of %d x %d samples needs %.0f MB, over the %.0f MB limit; "
+            "use fewer samples or a smaller box", n[0], n[1], bytes / 1048576.0,
+            GRID_LIMIT_BYTES / 1048576.0);
+    return NULL;
+  }
+  gr_grid2 *g = calloc(1, sizeof *g);
+  if (g) g->v = malloc((size_t)count * sizeof *g->v);
+  if (!g || !g->v) {
+    free(g);
+    gr_fail(e, GR_EMEM, "out of memory: grid of %d x %d samples needs %.0f MB", n[0], n[1],
+            bytes / 1048576.0);
+    return NULL;
+  }
+  g->nx = n[0]; g->ny = n[1];
+  g->x0 = lo[0]; g->y0 = lo[1]; g->z = z;
+  g->hx = (hi[0] - lo[0]) / (n[0] - 1);
+  g->hy = (hi[1] - lo[1]) / (n[1] - 1);
+  grid_axes a = {2, {n[0], n[1], 1}, {lo[0], lo[1], 0}, {g->hx, g->hy, 0}, z};
+  if (fill_grid(f, &a, (size_t)count, g->v, e)) { gr_grid2_free(g); return NULL; }
+  return g;
+}
+
+void gr_grid3_free(gr_grid3 *g) {
+  if (!g) return;
+  free(g->v);
+  free(g);
+}
+
+void gr_grid2_free(gr_grid2 *g) {
+  if (!g) return;
+  free(g->v);
+  free(g);
+}

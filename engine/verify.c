@@ -1,0 +1,179 @@
+/* verify.c: pore / overmelt fractions and contour deviation, see verify.h. */
+#include "verify.h"
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+gr_verify_opts gr_verify_defaults(void) {
+  gr_verify_opts o;
+  o.track = 0.1;
+  o.pixel = NAN;
+  o.offset = NAN;
+  o.spacing = NAN;
+  o.contours = 1;
+  o.max_pixels = 100000000L;
+  return o;
+}
+
+static int cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+/* Pixels of row y (centres x0 + (i+0.5)px) inside [a, b]. */
+static void fill_row(unsigned char *row, int nx, double x0, double px, double a, double b,
+                     unsigned char bit) {
+  long i0 = (long)ceil((a - x0) / px - 0.5), i1 = (long)floor((b - x0) / px - 0.5);
+  if (i0 < 0) i0 = 0;
+  if (i1 > nx - 1) i1 = nx - 1;
+  for (long i = i0; i <= i1; i++) row[i] |= bit;
+}
+
+/* Melt one capsule (segment A-B, radius r) row by row: the capsule meets a
+ * row in one interval, the hull of the end discs' and the rectangle's. */
+static void melt_capsule(unsigned char *img, int nx, int ny, const double lo[2], double px,
+                         double ax, double ay, double bx, double by, double r) {
+  double ymin = fmin(ay, by) - r, ymax = fmax(ay, by) + r;
+  long j0 = (long)ceil((ymin - lo[1]) / px - 0.5), j1 = (long)floor((ymax - lo[1]) / px - 0.5);
+  if (j0 < 0) j0 = 0;
+  if (j1 > ny - 1) j1 = ny - 1;
+  double dx = bx - ax, dy = by - ay, L = hypot(dx, dy);
+  double nxv = L > 0 ? -dy / L * r : 0, nyv = L > 0 ? dx / L * r : 0;
+  double q[8] = {ax + nxv, ay + nyv, bx + nxv, by + nyv, bx - nxv, by - nyv, ax - nxv, ay - nyv};
+  for (long j = j0; j <= j1; j++) {
+    double y = lo[1] + ((double)j + 0.5) * px, a = INFINITY, b = -INFINITY;
+    double ends[4] = {ax, ay, bx, by};
+    for (int k = 0; k < 2; k++) {
+      double h = y - ends[2 * k + 1];
+      if (fabs(h) <= r) {
+        double w = sqrt(r * r - h * h);
+        a = fmin(a, ends[2 * k] - w);
+        b = fmax(b, ends[2 * k] + w);
+      }
+    }
+    if (L > 0)
+      for (int k = 0; k < 4; k++) {
+        int m = (k + 1) & 3;
+        double y1 = q[2 * k + 1], y2 = q[2 * m + 1], x1 = q[2 * k], x2 = q[2 * m];
+        if ((y < y1 && y < y2) || (y > y1 && y > y2)) continue;
+        if (y1 == y2) { a = fmin(a, fmin(x1, x2)); b = fmax(b, fmax(x1, x2)); continue; }
+        double x = x1 + (y - y1) * (x2 - x1) / (y2 - y1);
+        a = fmin(a, x);
+        b = fmax(b, x);
+      }
+    if (a <= b) fill_row(img + (size_t)j * nx, nx, lo[0], px, a, b, 2);
+  }
+}
+
+static double dist_boundary(const gr_rings *s, double x, double y) {
+  double best = INFINITY;
+  for (size_t i = 0; i < s->nrings; i++) {
+    const double *p = gr_ring_xy(s, i);
+    size_t n = gr_ring_len(s, i);
+    for (size_t a = 0, b = n - 1; a < n; b = a++) {
+      double ex = p[2 * a] - p[2 * b], ey = p[2 * a + 1] - p[2 * b + 1];
+      double qx = x - p[2 * b], qy = y - p[2 * b + 1];
+      double l2 = ex * ex + ey * ey, t = l2 > 0 ? (qx * ex + qy * ey) / l2 : 0;
+      t = t < 0 ? 0 : t > 1 ? 1 : t;
+      double dx = qx - t * ex, dy = qy - t * ey, d2 = dx * dx + dy * dy;
+      if (d2 < best) best = d2;
+    }
+  }
+  return sqrt(best);
+}
+
+int gr_verify_layer(const gr_rings *section, const gr_layer *l, const gr_verify_opts *o,
+                    gr_verify_result *r, gr_err *e) {
+  if (!section || !l || !o || !r) return gr_fail(e, GR_EARG, "verify: NULL argument");
+  memset(r, 0, sizeof *r);
+  double tr = o->track;
+  if (!(tr > 0) || !isfinite(tr)) return gr_fail(e, GR_EARG, "verify track must be > 0, got %g", tr);
+  double px = isnan(o->pixel) ? tr / 10 : o->pixel;
+  if (!(px > 0) || !isfinite(px)) return gr_fail(e, GR_EARG, "verify pixel must be > 0, got %g", o->pixel);
+  double b = isnan(o->offset) ? tr / 2 : o->offset;
+  if (!(b >= 0) || !isfinite(b)) return gr_fail(e, GR_EARG, "verify offset must be >= 0, got %g", o->offset);
+  double sp = isnan(o->spacing) ? tr : o->spacing;
+  if (!(sp > 0) || !isfinite(sp)) return gr_fail(e, GR_EARG, "verify spacing must be > 0, got %g", o->spacing);
+  if (o->contours < 1) return gr_fail(e, GR_EARG, "verify contours must be >= 1, got %d", o->contours);
+  double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+  for (size_t k = 0; k < section->npts; k++)
+    for (int c = 0; c < 2; c++) {
+      lo[c] = fmin(lo[c], section->xy[2 * k + c]);
+      hi[c] = fmax(hi[c], section->xy[2 * k + c]);
+    }
+  if (l->npts) {
+    double a[2], c2[2];
+    gr_layer_bounds(l, a, c2);
+    for (int c = 0; c < 2; c++) { lo[c] = fmin(lo[c], a[c]); hi[c] = fmax(hi[c], c2[c]); }
+  }
+  if (!(lo[0] <= hi[0]) || !(lo[1] <= hi[1])) return GR_OK; /* nothing at all */
+  if (!isfinite(lo[0]) || !isfinite(lo[1]) || !isfinite(hi[0]) || !isfinite(hi[1]))
+    return gr_fail(e, GR_ENUM, "verify: coordinates are not finite");
+  for (int c = 0; c < 2; c++) { lo[c] -= tr / 2 + px; hi[c] += tr / 2 + px; }
+  double fx = ceil((hi[0] - lo[0]) / px), fy = ceil((hi[1] - lo[1]) / px);
+  if (fx * fy > (double)o->max_pixels)
+    return gr_fail(e, GR_EARG, "verify: raster of %.0f x %.0f pixels at pixel %g exceeds %ld pixels",
+                   fx, fy, px, o->max_pixels);
+  int nx = (int)fx, ny = (int)fy;
+  r->nx = nx;
+  r->ny = ny;
+  unsigned char *img = calloc((size_t)nx * ny, 1);
+  double *xs = malloc((section->npts + 1) * sizeof *xs);
+  if (!img || !xs) { free(img); free(xs); return gr_fail(e, GR_EMEM, "verify: out of memory (%d x %d pixels)", nx, ny); }
+  /* solid: even-odd scanline over every ring edge */
+  for (int j = 0; j < ny; j++) {
+    double y = lo[1] + (j + 0.5) * px;
+    size_t n = 0;
+    for (size_t i = 0; i < section->nrings; i++) {
+      const double *p = gr_ring_xy(section, i);
+      size_t m = gr_ring_len(section, i);
+      for (size_t a = 0, c = m - 1; a < m; c = a++) {
+        double ya = p[2 * a + 1], yc = p[2 * c + 1];
+        if ((ya <= y && y < yc) || (yc <= y && y < ya))
+          xs[n++] = p[2 * a] + (y - ya) * (p[2 * c] - p[2 * a]) / (yc - ya);
+      }
+    }
+    qsort(xs, n, sizeof *xs, cmp_double);
+    for (size_t k = 0; k + 1 < n; k += 2) fill_row(img + (size_t)j * nx, nx, lo[0], px, xs[k], xs[k + 1], 1);
+  }
+  /* melt: capsules of every scanned segment */
+  double dsum = 0;
+  for (size_t bi = 0; bi < l->nb; bi++) {
+    const gr_block *B = &l->b[bi];
+    const double *p = l->xy + 2 * B->start;
+    if (B->shape == GR_SEGMENTS) {
+      for (size_t k = 0; k + 1 < B->n; k += 2)
+        melt_capsule(img, nx, ny, lo, px, p[2 * k], p[2 * k + 1], p[2 * k + 2], p[2 * k + 3], tr / 2);
+    } else {
+      for (size_t k = 0; k + 1 < B->n; k++)
+        melt_capsule(img, nx, ny, lo, px, p[2 * k], p[2 * k + 1], p[2 * k + 2], p[2 * k + 3], tr / 2);
+      if (B->n == 1) melt_capsule(img, nx, ny, lo, px, p[0], p[1], p[0], p[1], tr / 2);
+    }
+    if (B->kind == GR_CONTOUR && B->shape != GR_SEGMENTS) {
+      size_t m = B->n - (B->shape == GR_CLOSED && B->n > 1 ? 1 : 0);
+      for (size_t k = 0; k < m; k++) {
+        double dist = dist_boundary(section, p[2 * k], p[2 * k + 1]), dev = INFINITY;
+        for (int c = 0; c < o->contours; c++) dev = fmin(dev, fabs(dist - (b + c * sp)));
+        dsum += dev;
+        r->max_dev = fmax(r->max_dev, dev);
+        r->contour_points++;
+      }
+    }
+  }
+  size_t solid = 0, melt = 0, pore = 0, over = 0;
+  for (size_t k = 0; k < (size_t)nx * ny; k++) {
+    unsigned char v = img[k];
+    solid += v & 1;
+    melt += (v >> 1) & 1;
+    pore += v == 1;
+    over += v == 2;
+  }
+  r->solid_area = (double)solid * px * px;
+  r->melt_area = (double)melt * px * px;
+  r->pore = solid ? (double)pore / (double)solid : 0;
+  r->overmelt = solid ? (double)over / (double)solid : (melt ? INFINITY : 0);
+  r->mean_dev = r->contour_points ? dsum / (double)r->contour_points : 0;
+  free(img);
+  free(xs);
+  return GR_OK;
+}

@@ -1,0 +1,418 @@
+/* test_field.c: the TPMS catalogue at analytic points, symmetries, origin
+ * and cell handling, gradients against finite differences, the Lipschitz
+ * bound, expression / callback / combination fields and grid sampling. */
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+#include "check.h"
+#include "field.h"
+
+static double rnd(double lo, double hi) { return lo + (hi - lo) * (rand() / (double)RAND_MAX); }
+
+static double ev(const gr_field *f, double x, double y, double z) {
+  double v = NAN;
+  gr_err e = {0};
+  if (gr_field_eval(f, 1, &x, &y, &z, &v, &e)) printf("    eval failed: %s\n", e.msg);
+  return v;
+}
+
+static void gr1(const gr_field *f, double x, double y, double z, double g[3]) {
+  gr_err e = {0};
+  if (gr_field_grad(f, 1, &x, &y, &z, g, g + 1, g + 2, &e)) printf("    grad failed: %s\n", e.msg);
+}
+
+/* phi written out with libm for each surface at X, Y, Z (SPEC.md s.2). */
+static double ref_phi(int s, double X, double Y, double Z) {
+  double cX = cos(X), cY = cos(Y), cZ = cos(Z), sX = sin(X), sY = sin(Y), sZ = sin(Z);
+  double c2X = cos(2 * X), c2Y = cos(2 * Y), c2Z = cos(2 * Z);
+  double s2X = sin(2 * X), s2Y = sin(2 * Y), s2Z = sin(2 * Z);
+  switch (s) {
+  case 0: return cX + cY + cZ;
+  case 1: return cX * sY + cY * sZ + cZ * sX;
+  case 2: return sX * sY * sZ + sX * cY * cZ + cX * sY * cZ + cX * cY * sZ;
+  case 3: return 2 * (cX * cY + cY * cZ + cZ * cX) - (c2X + c2Y + c2Z);
+  case 4: return 3 * (cX + cY + cZ) + 4 * cX * cY * cZ;
+  case 5: return 4 * cX * cY * cZ - (c2X * c2Y + c2Y * c2Z + c2Z * c2X);
+  case 6: return c2X * sY * cZ + cX * c2Y * sZ + sX * cY * c2Z;
+  case 7: return s2X * cY * sZ + s2Y * cZ * sX + s2Z * cX * sY - (c2X * c2Y + c2Y * c2Z + c2Z * c2X) + 0.3;
+  case 8: return 1.1 * (s2X * sZ * cY + s2Y * sX * cZ + s2Z * sY * cX) -
+                 0.2 * (c2X * c2Y + c2Y * c2Z + c2Z * c2X) - 0.4 * (c2X + c2Y + c2Z);
+  case 9: return 0.6 * (cX * cY + cY * cZ + cZ * cX) - 0.4 * (cX + cY + cZ) + 0.25;
+  }
+  return NAN;
+}
+
+TEST(catalogue_names) {
+  CHECK(gr_tpms_count() == 10, "count %d", gr_tpms_count());
+  const char *want[10] = {"primitive", "gyroid", "diamond", "iwp", "neovius", "frd",
+                          "fischer_koch_s", "lidinoid", "split_p", "octo"};
+  for (int i = 0; i < 10; i++) {
+    CHECK(strcmp(gr_tpms_name(i), want[i]) == 0, "name %d", i);
+    CHECK(gr_tpms_lookup(want[i]) == i, "lookup %s", want[i]);
+    CHECK(strstr(gr_tpms_names(), want[i]) != NULL, "names has %s", want[i]);
+  }
+  CHECK(gr_tpms_lookup("schwarz") == -1, "unknown");
+  gr_err e = {0};
+  CHECK(gr_field_tpms("schwarz", 2, NULL, 0, &e) == NULL && e.code == GR_EARG, "unknown fails");
+  CHECK(strstr(e.msg, "'schwarz'") && strstr(e.msg, "gyroid") && strstr(e.msg, "octo"), "msg '%s'", e.msg);
+  CHECK(gr_field_tpms("gyroid", 0, NULL, 0, &e) == NULL && strstr(e.msg, "got 0"), "cell 0: '%s'", e.msg);
+  CHECK(gr_field_tpms("gyroid", -1, NULL, 0, &e) == NULL && strstr(e.msg, "got -1"), "cell -1: '%s'", e.msg);
+}
+
+TEST(primitive_known_points) {
+  gr_err e = {0};
+  double o[3] = {1, -2, 0.5};
+  gr_field *f = gr_field_tpms("primitive", 2, o, 0, &e);
+  CHECK(f != NULL, "%s", e.msg);
+  if (!f) return;
+  /* cell centre: o + L/2 = 3; corner: -3; face centre of the cell: 1 */
+  CHECK_NEAR(ev(f, 2, -1, 1.5), 3, 1e-12);
+  CHECK_NEAR(ev(f, 1, -2, 0.5), -3, 1e-12);
+  CHECK_NEAR(ev(f, 3, 0, 2.5), -3, 1e-12);
+  CHECK_NEAR(ev(f, 1, -1, 1.5), 1, 1e-12);
+  CHECK_NEAR(ev(f, 2 + 0.5, -1, 1.5), 2, 1e-12); /* quarter cell: cos(pi/2) = 0 */
+  gr_tpms_info info;
+  CHECK(gr_field_tpms_info(f, &info) && info.surface == 0 && info.cell == 2 && info.origin[1] == -2,
+        "info");
+  CHECK(strstr(gr_field_describe(f), "primitive(L=2") != NULL, "describe '%s'", gr_field_describe(f));
+  gr_field_free(f);
+  /* level shifts the value */
+  f = gr_field_tpms("primitive", 4, NULL, 0.5, &e);
+  CHECK_NEAR(ev(f, 2, 2, 2), 2.5, 1e-12);
+  CHECK_NEAR(ev(f, 0, 0, 0), -3.5, 1e-12);
+  gr_field_free(f);
+}
+
+TEST(all_surfaces_match_formulas_and_symmetries) {
+  srand(2);
+  gr_err e = {0};
+  for (int s = 0; s < 10; s++) {
+    double L = rnd(0.5, 5), o[3] = {rnd(-3, 3), rnd(-3, 3), rnd(-3, 3)};
+    gr_field *f = gr_field_tpms(gr_tpms_name(s), L, o, 0, &e);
+    CHECK(f != NULL, "%s", e.msg);
+    if (!f) continue;
+    double w = 2 * M_PI / L;
+    int bad = 0, badper = 0, badsym = 0;
+    for (int k = 0; k < 500; k++) {
+      double x = rnd(-10, 10), y = rnd(-10, 10), z = rnd(-10, 10);
+      double v = ev(f, x, y, z);
+      double want = ref_phi(s, w * (x - o[0] - L / 2), w * (y - o[1] - L / 2), w * (z - o[2] - L / 2));
+      if (fabs(v - want) > 1e-9) bad++;
+      /* periodic with period L along each axis */
+      if (fabs(ev(f, x + L, y, z) - v) > 1e-9 || fabs(ev(f, x, y - L, z) - v) > 1e-9 ||
+          fabs(ev(f, x, y, z + 2 * L) - v) > 1e-9)
+        badper++;
+      /* point reflection about the cell centre c: p -> 2c - p */
+      double cx = o[0] + L / 2, cy = o[1] + L / 2, cz = o[2] + L / 2;
+      double r = ev(f, 2 * cx - x, 2 * cy - y, 2 * cz - z);
+      /* odd surfaces (only sines to odd total power) flip sign, the rest are even */
+      int odd = s == 1 || s == 2;
+      int evenc = s == 0 || s == 3 || s == 4 || s == 5 || s == 9;
+      if (odd && fabs(r + v) > 1e-9) badsym++;
+      if (evenc && fabs(r - v) > 1e-9) badsym++;
+    }
+    CHECK(bad == 0, "%s: %d points differ from the formula", gr_tpms_name(s), bad);
+    CHECK(badper == 0, "%s: %d points not periodic", gr_tpms_name(s), badper);
+    CHECK(badsym == 0, "%s: %d points break the central symmetry", gr_tpms_name(s), badsym);
+    gr_field_free(f);
+  }
+  /* gyroid at the centre is 0 (odd), neovius at the centre 3*3+4 = 13 */
+  gr_field *g = gr_field_tpms("gyroid", 2, NULL, 0, &e);
+  CHECK_NEAR(ev(g, 1, 1, 1), 0, 1e-12);
+  gr_field_free(g);
+  g = gr_field_tpms("neovius", 2, NULL, 0, &e);
+  CHECK_NEAR(ev(g, 1, 1, 1), 13, 1e-12);
+  CHECK_NEAR(ev(g, 0, 0, 0), -13, 1e-12);
+  gr_field_free(g);
+}
+
+TEST(gradients_and_lipschitz) {
+  srand(3);
+  gr_err e = {0};
+  for (int s = 0; s < 10; s++) {
+    double L = rnd(0.5, 4), o[3] = {rnd(-2, 2), rnd(-2, 2), rnd(-2, 2)};
+    gr_field *f = gr_field_tpms(gr_tpms_name(s), L, o, 0.2, &e);
+    if (!f) { CHECK(0, "%s", e.msg); continue; }
+    double K = gr_field_lipschitz(f), maxg = 0;
+    CHECK(isfinite(K) && K > 0, "%s: K = %g", gr_tpms_name(s), K);
+    int bad = 0, over = 0;
+    for (int k = 0; k < 2000; k++) {
+      double x = rnd(-5, 5), y = rnd(-5, 5), z = rnd(-5, 5), g[3], h = 1e-5;
+      gr1(f, x, y, z, g);
+      double fd[3] = {(ev(f, x + h, y, z) - ev(f, x - h, y, z)) / (2 * h),
+                      (ev(f, x, y + h, z) - ev(f, x, y - h, z)) / (2 * h),
+                      (ev(f, x, y, z + h) - ev(f, x, y, z - h)) / (2 * h)};
+      double scale = 1 + fabs(g[0]) + fabs(g[1]) + fabs(g[2]);
+      for (int i = 0; i < 3; i++)
+        if (fabs(g[i] - fd[i]) > 1e-6 * scale) bad++;
+      double n = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+      if (n > K) over++;
+      if (n > maxg) maxg = n;
+    }
+    CHECK(bad == 0, "%s: %d gradient components differ from finite differences", gr_tpms_name(s), bad);
+    CHECK(over == 0, "%s: |grad| exceeded K = %g at %d points", gr_tpms_name(s), K, over);
+    /* the bound is not absurdly loose either (within a factor 8 of the max seen) */
+    CHECK(maxg > K / 8, "%s: max |grad| %g vs K %g", gr_tpms_name(s), maxg, K);
+    gr_field_free(f);
+  }
+}
+
+TEST(expression_fields) {
+  gr_err e = {0};
+  gr_field *f = gr_field_expr("sqrt(x^2+y^2+z^2)-3", &e);
+  CHECK(f != NULL, "%s", e.msg);
+  if (!f) return;
+  CHECK(!isfinite(gr_field_lipschitz(f)), "unknown bound is infinite");
+  CHECK_NEAR(ev(f, 0, 0, 0), -3, 1e-15);
+  CHECK_NEAR(ev(f, 3, 4, 0), 2, 1e-15);
+  double g[3];
+  gr1(f, 1, 2, 2, g); /* unit radial direction (1,2,2)/3 */
+  CHECK_NEAR(g[0], 1.0 / 3, 1e-7);
+  CHECK_NEAR(g[1], 2.0 / 3, 1e-7);
+  CHECK_NEAR(g[2], 2.0 / 3, 1e-7);
+  gr1(f, 300, 400, 0, g); /* far away: relative step still accurate */
+  CHECK_NEAR(g[0], 0.6, 1e-5);
+  CHECK_NEAR(g[1], 0.8, 1e-5);
+  gr_field_free(f);
+  CHECK(gr_field_expr("sin(x", &e) == NULL && strstr(e.msg, "col 6"), "'%s'", e.msg);
+  CHECK(gr_field_expr("u + 1", &e) == NULL && strstr(e.msg, "'u'") && strstr(e.msg, "x, y, z"),
+        "'%s'", e.msg);
+  f = gr_field_expr("log(x)", &e);
+  double x = -1, y = 2, z = 3, v;
+  CHECK(gr_field_eval(f, 1, &x, &y, &z, &v, &e) == GR_ENUM && strstr(e.msg, "nan at x=-1, y=2, z=3"),
+        "'%s'", e.msg);
+  gr_field_free(f);
+}
+
+static int cb_sphere(void *ud, size_t n, const double *x, const double *y, const double *z,
+                     double *out, gr_err *e) {
+  double r = *(double *)ud;
+  (void)e;
+  for (size_t i = 0; i < n; i++) out[i] = sqrt(x[i] * x[i] + y[i] * y[i] + z[i] * z[i]) - r;
+  return GR_OK;
+}
+static int cb_nan(void *ud, size_t n, const double *x, const double *y, const double *z,
+                  double *out, gr_err *e) {
+  (void)ud; (void)y; (void)z; (void)e;
+  for (size_t i = 0; i < n; i++) out[i] = x[i] > 1 ? NAN : 0;
+  return GR_OK;
+}
+static int freed;
+static void free_cb(void *ud) { (void)ud; freed++; }
+
+TEST(callback_fields) {
+  double r = 2;
+  freed = 0;
+  gr_field *f = gr_field_callback(cb_sphere, NULL, &r, free_cb, 1, "ball");
+  CHECK(f != NULL, "callback");
+  CHECK_NEAR(ev(f, 2, 0, 0), 0, 1e-15);
+  double g[3];
+  gr1(f, 0, 3, 4, g);
+  CHECK_NEAR(g[1], 0.6, 1e-7);
+  CHECK_NEAR(g[2], 0.8, 1e-7);
+  CHECK(strcmp(gr_field_describe(f), "ball") == 0, "describe");
+  gr_field *m = gr_field_negate(f);
+  gr_field_free(f);
+  CHECK(freed == 0, "still referenced by the negation");
+  CHECK_NEAR(ev(m, 0, 0, 0), 2, 1e-15);
+  gr_field_free(m);
+  CHECK(freed == 1, "freed once, got %d", freed);
+  gr_field *bad = gr_field_callback(cb_nan, NULL, NULL, NULL, 0, "nanny");
+  CHECK(!gr_field_threadsafe(bad), "not thread-safe");
+  gr_field *u = gr_field_min(bad, bad);
+  CHECK(!gr_field_threadsafe(u), "combination inherits");
+  double x[3] = {0, 5, 0}, y[3] = {0, 0, 0}, z[3] = {0, 0, 7}, v[3];
+  gr_err e = {0};
+  CHECK(gr_field_eval(u, 3, x, y, z, v, &e) == GR_ENUM && strstr(e.msg, "x=5, y=0, z=0"), "'%s'", e.msg);
+  gr_field_free(u);
+  gr_field_free(bad);
+}
+
+TEST(combinations) {
+  gr_err e = {0};
+  gr_field *a = gr_field_expr("x", &e), *b = gr_field_expr("2*y", &e);
+  gr_field *mn = gr_field_min(a, b), *mx = gr_field_max(a, b), *ng = gr_field_negate(a);
+  gr_field *wc = gr_field_constant(0.25);
+  gr_field *bl = gr_field_blend(a, b, wc);
+  double d[3] = {1, 2, 3};
+  gr_field *sph = gr_field_expr("sqrt(x^2+y^2+z^2)-1", &e);
+  gr_field *tr = gr_field_translate(sph, d);
+  gr_field *sc = gr_field_scale(sph, 3);
+  CHECK_NEAR(ev(mn, 1, 3, 0), 1, 1e-15);
+  CHECK_NEAR(ev(mn, 5, 1, 0), 2, 1e-15);
+  CHECK_NEAR(ev(mx, 5, 1, 0), 5, 1e-15);
+  CHECK_NEAR(ev(ng, 5, 1, 0), -5, 1e-15);
+  CHECK_NEAR(ev(bl, 4, 2, 0), 0.75 * 4 + 0.25 * 4, 1e-15);
+  CHECK_NEAR(ev(tr, 1, 2, 3), -1, 1e-15);
+  CHECK_NEAR(ev(tr, 1, 2, 5), 1, 1e-15);
+  CHECK_NEAR(ev(sc, 3, 0, 0), 0, 1e-15); /* sphere of radius 3 */
+  CHECK_NEAR(ev(sc, 0, 0, 0), -3, 1e-15);
+  double g[3];
+  gr1(mn, 1, 3, 0, g);
+  CHECK_NEAR(g[0], 1, 1e-6); CHECK_NEAR(g[1], 0, 1e-6);
+  gr1(mn, 5, 1, 0, g);
+  CHECK_NEAR(g[0], 0, 1e-6); CHECK_NEAR(g[1], 2, 1e-6);
+  gr1(mx, 5, 1, 0, g);
+  CHECK_NEAR(g[0], 1, 1e-6);
+  gr1(ng, 5, 1, 0, g);
+  CHECK_NEAR(g[0], -1, 1e-6);
+  gr1(bl, 4, 2, 0, g);
+  CHECK_NEAR(g[0], 0.75, 1e-6); CHECK_NEAR(g[1], 0.5, 1e-6);
+  gr1(tr, 1, 2, 5, g);
+  CHECK_NEAR(g[2], 1, 1e-6);
+  gr1(sc, 0, 6, 0, g);
+  CHECK_NEAR(g[1], 1, 1e-6);
+  /* blend with a varying weight: (1-w) a + w b with w = x/10 clamped */
+  gr_field *wv = gr_field_expr("x/10", &e);
+  gr_field *bv = gr_field_blend(a, b, wv);
+  CHECK_NEAR(ev(bv, 5, 1, 0), 0.5 * 5 + 0.5 * 2, 1e-14);
+  CHECK_NEAR(ev(bv, 20, 1, 0), 2, 1e-14);
+  CHECK_NEAR(ev(bv, -20, 1, 0), -20, 1e-14);
+  /* d/dx [(1 - x/10) x + x/10 * 2y] = 1 - x/5 + 2y/10 at (5,1): 0.2 */
+  gr1(bv, 5, 1, 0, g);
+  CHECK_NEAR(g[0], 0.2, 1e-6);
+  CHECK(!isfinite(gr_field_lipschitz(bv)), "varying weight: no bound");
+  /* Lipschitz bounds of combinations of TPMS fields */
+  gr_field *t1 = gr_field_tpms("primitive", 2, NULL, 0, &e), *t2 = gr_field_tpms("gyroid", 1, NULL, 0, &e);
+  gr_field *tm = gr_field_min(t1, t2), *tb = gr_field_blend(t1, t2, wc), *ts = gr_field_scale(t1, 2);
+  CHECK_NEAR(gr_field_lipschitz(tm), gr_field_lipschitz(t2), 1e-12);
+  CHECK_NEAR(gr_field_lipschitz(tb), gr_field_lipschitz(t2), 1e-12);
+  CHECK_NEAR(gr_field_lipschitz(ts), gr_field_lipschitz(t1), 1e-12);
+  /* batch larger than a chunk, min against pointwise min */
+  enum { N = 1000 };
+  double *x = malloc(N * sizeof *x), *y = malloc(N * sizeof *y), *z = malloc(N * sizeof *z);
+  double *v = malloc(N * sizeof *v);
+  srand(4);
+  for (int i = 0; i < N; i++) { x[i] = rnd(-3, 3); y[i] = rnd(-3, 3); z[i] = rnd(-3, 3); }
+  CHECK(gr_field_eval(tm, N, x, y, z, v, &e) == GR_OK, "%s", e.msg);
+  int bad = 0;
+  for (int i = 0; i < N; i++)
+    if (fabs(v[i] - fmin(ev(t1, x[i], y[i], z[i]), ev(t2, x[i], y[i], z[i]))) > 1e-14) bad++;
+  CHECK(bad == 0, "%d batch values differ", bad);
+  CHECK(strstr(gr_field_describe(tm), "min(primitive") != NULL, "'%s'", gr_field_describe(tm));
+  CHECK(gr_field_scale(t1, 0) == NULL, "scale 0 refused");
+  free(x); free(y); free(z); free(v);
+  gr_field *all[] = {a, b, mn, mx, ng, wc, bl, sph, tr, sc, wv, bv, t1, t2, tm, tb, ts};
+  for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) gr_field_free(all[i]);
+  gr_field_free(NULL);
+}
+
+TEST(grid_sampling) {
+  gr_err e = {0};
+  gr_field *f = gr_field_expr("x + 10*y + 100*z", &e);
+  double lo[3] = {0, -1, 2}, hi[3] = {1, 1, 3};
+  int n[3] = {5, 3, 2};
+  gr_grid3 *g = gr_grid3_sample(f, lo, hi, n, &e);
+  CHECK(g != NULL, "%s", e.msg);
+  if (g) {
+    CHECK(g->nx == 5 && g->ny == 3 && g->nz == 2, "dims");
+    CHECK_NEAR(g->hx, 0.25, 1e-15);
+    int bad = 0;
+    for (int k = 0; k < 2; k++)
+      for (int j = 0; j < 3; j++)
+        for (int i = 0; i < 5; i++) {
+          double want = 0.25 * i + 10 * (-1 + j) + 100 * (2 + k);
+          if (fabs(g->v[i + 5 * (j + 3 * k)] - want) > 1e-12) bad++;
+        }
+    CHECK(bad == 0, "%d samples wrong", bad);
+  }
+  gr_grid3_free(g);
+  /* larger than one sampling chunk */
+  int n2[2] = {101, 77};
+  double lo2[2] = {-1, -2}, hi2[2] = {1, 2};
+  gr_grid2 *p = gr_grid2_sample(f, 0.5, lo2, hi2, n2, &e);
+  CHECK(p != NULL, "%s", e.msg);
+  if (p) {
+    int bad = 0;
+    for (int j = 0; j < 77; j++)
+      for (int i = 0; i < 101; i++) {
+        double want = (-1 + i * 0.02) + 10 * (-2 + j * 4.0 / 76) + 50;
+        if (fabs(p->v[i + 101 * j] - want) > 1e-11) bad++;
+      }
+    CHECK(bad == 0, "%d samples wrong", bad);
+  }
+  gr_grid2_free(p);
+  /* TPMS grids (their own fast path) agree with point evaluation */
+  for (int s = 0; s < gr_tpms_count(); s++) {
+    double o[3] = {0.3, -0.2, 0.1};
+    gr_field *t = gr_field_tpms(gr_tpms_name(s), 1.7, o, 0.1, &e);
+    double tlo[3] = {-1, -2, 0.5}, thi[3] = {2, 1, 2.5};
+    int tn[3] = {13, 11, 7};
+    gr_grid3 *tg = gr_grid3_sample(t, tlo, thi, tn, &e);
+    gr_grid2 *tp = gr_grid2_sample(t, 0.77, tlo, thi, tn, &e);
+    int bad = 0;
+    for (int k = 0; k < 7; k++)
+      for (int j = 0; j < 11; j++)
+        for (int i = 0; i < 13; i++) {
+          double px = tlo[0] + i * 0.25, py = tlo[1] + j * 0.3, pz = tlo[2] + k * (2.0 / 6);
+          if (fabs(tg->v[i + 13 * (j + 11 * k)] - ev(t, px, py, pz)) > 1e-12) bad++;
+          if (k == 0 && fabs(tp->v[i + 13 * j] - ev(t, px, py, 0.77)) > 1e-12) bad++;
+        }
+    CHECK(bad == 0, "%s: %d grid samples differ from eval", gr_tpms_name(s), bad);
+    gr_grid3_free(tg);
+    gr_grid2_free(tp);
+    gr_field_free(t);
+  }
+  int big[3] = {2000, 2000, 2000};
+  CHECK(gr_grid3_sample(f, lo, hi, big, &e) == NULL && e.code == GR_EMEM, "big refused");
+  CHECK(strstr(e.msg, "2000 x 2000 x 2000") && strstr(e.msg, "61035 MB"), "'%s'", e.msg);
+  int one[3] = {1, 5, 5};
+  CHECK(gr_grid3_sample(f, lo, hi, one, &e) == NULL && e.code == GR_EARG && strstr(e.msg, "got 1"),
+        "'%s'", e.msg);
+  double hi_bad[3] = {0, 1, 3};
+  CHECK(gr_grid3_sample(f, lo, hi_bad, n, &e) == NULL && e.code == GR_EARG, "hi == lo refused");
+  gr_grid3_free(NULL);
+  gr_grid2_free(NULL);
+  gr_field_free(f);
+}
+
+/* Several threads evaluate one shared combination at once; each must get the
+ * serial result (no shared mutable state in fields or expressions). */
+enum { TN = 20000, NTHREADS = 4 };
+typedef struct job { const gr_field *f; const double *x, *y, *z; double *out; int rc; } job;
+static void *job_run(void *p) {
+  job *j = p;
+  gr_err e = {0};
+  j->rc = gr_field_eval(j->f, TN, j->x, j->y, j->z, j->out, &e);
+  return NULL;
+}
+
+TEST(concurrent_evaluation) {
+  gr_err e = {0};
+  gr_field *a = gr_field_tpms("gyroid", 2, NULL, 0, &e), *b = gr_field_expr("sin(x)*y - z/3", &e);
+  gr_field *w = gr_field_expr("x/6 + 0.5", &e), *f = gr_field_blend(a, b, w);
+  CHECK(gr_field_threadsafe(f), "thread-safe");
+  double *x = malloc(TN * sizeof *x), *y = malloc(TN * sizeof *y), *z = malloc(TN * sizeof *z);
+  double *ref = malloc(TN * sizeof *ref), *out[NTHREADS];
+  srand(5);
+  for (int i = 0; i < TN; i++) { x[i] = rnd(-3, 3); y[i] = rnd(-3, 3); z[i] = rnd(-3, 3); }
+  CHECK(gr_field_eval(f, TN, x, y, z, ref, &e) == GR_OK, "%s", e.msg);
+  pthread_t th[NTHREADS];
+  job jobs[NTHREADS];
+  for (int t = 0; t < NTHREADS; t++) {
+    out[t] = malloc(TN * sizeof *out[t]);
+    jobs[t] = (job){f, x, y, z, out[t], -1};
+    pthread_create(&th[t], NULL, job_run, &jobs[t]);
+  }
+  for (int t = 0; t < NTHREADS; t++) {
+    pthread_join(th[t], NULL);
+    CHECK(jobs[t].rc == GR_OK, "thread %d failed", t);
+    CHECK(memcmp(out[t], ref, TN * sizeof *ref) == 0, "thread %d differs from the serial result", t);
+    free(out[t]);
+  }
+  free(x); free(y); free(z); free(ref);
+  gr_field_free(a); gr_field_free(b); gr_field_free(w); gr_field_free(f);
+}
+
+int main(void) {
+  RUN(catalogue_names);
+  RUN(primitive_known_points);
+  RUN(all_surfaces_match_formulas_and_symmetries);
+  RUN(gradients_and_lipschitz);
+  RUN(expression_fields);
+  RUN(callback_fields);
+  RUN(combinations);
+  RUN(grid_sampling);
+  RUN(concurrent_evaluation);
+  DONE();
+}

@@ -1,0 +1,459 @@
+/* test_hatch.c: the hatch primitive against analytic truth. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include "check.h"
+#include "hatch.h"
+
+static const double PI = 3.14159265358979323846;
+
+static gr_rings *rect(double x0, double y0, double x1, double y1) {
+  gr_rings *r = gr_rings_new();
+  double p[8] = {x0, y0, x1, y0, x1, y1, x0, y1};
+  gr_rings_add(r, p, 4);
+  return r;
+}
+
+/* L shape: [0,2]x[0,2] minus [1,2]x[1,2], shifted by (sx, sy). */
+static gr_rings *lshape(double sx, double sy) {
+  gr_rings *r = gr_rings_new();
+  double p[12] = {0, 0, 2, 0, 2, 1, 1, 1, 1, 2, 0, 2};
+  for (int i = 0; i < 6; i++) { p[2 * i] += sx; p[2 * i + 1] += sy; }
+  gr_rings_add(r, p, 6);
+  return r;
+}
+
+static void add_circle(gr_rings *r, double cx, double cy, double R, int n, int ccw) {
+  for (int i = 0; i < n; i++) {
+    double t = 2 * PI * i / n * (ccw ? 1 : -1);
+    gr_rings_point(r, cx + R * cos(t), cy + R * sin(t));
+  }
+  gr_rings_close(r);
+}
+
+static double dist_to_edges(const gr_rings *r, double x, double y) {
+  double best = INFINITY;
+  for (size_t i = 0; i < r->nrings; i++) {
+    const double *p = gr_ring_xy(r, i);
+    size_t n = gr_ring_len(r, i);
+    for (size_t a = 0, b = n - 1; a < n; b = a++) {
+      double ex = p[2 * a] - p[2 * b], ey = p[2 * a + 1] - p[2 * b + 1];
+      double qx = x - p[2 * b], qy = y - p[2 * b + 1];
+      double t = (qx * ex + qy * ey) / (ex * ex + ey * ey);
+      t = t < 0 ? 0 : t > 1 ? 1 : t;
+      best = fmin(best, hypot(qx - t * ex, qy - t * ey));
+    }
+  }
+  return best;
+}
+
+static int inside_or_on(const gr_rings *r, double x, double y) {
+  return gr_rings_contains(r, x, y) || dist_to_edges(r, x, y) < 1e-9;
+}
+
+/* Strict crossing of segment p-q with any ring edge (touching excluded). */
+static int crosses_edges(const gr_rings *r, double px, double py, double qx, double qy) {
+  for (size_t i = 0; i < r->nrings; i++) {
+    const double *p = gr_ring_xy(r, i);
+    size_t n = gr_ring_len(r, i);
+    for (size_t a = 0, b = n - 1; a < n; b = a++) {
+      double ax = p[2 * b], ay = p[2 * b + 1], bx = p[2 * a], by = p[2 * a + 1];
+      double d1 = (qx - px) * (ay - py) - (qy - py) * (ax - px);
+      double d2 = (qx - px) * (by - py) - (qy - py) * (bx - px);
+      double d3 = (bx - ax) * (py - ay) - (by - ay) * (px - ax);
+      double d4 = (bx - ax) * (qy - ay) - (by - ay) * (qx - ax);
+      double eps = 1e-12;
+      if (((d1 > eps && d2 < -eps) || (d1 < -eps && d2 > eps)) &&
+          ((d3 > eps && d4 < -eps) || (d3 < -eps && d4 > eps)))
+        return 1;
+    }
+  }
+  return 0;
+}
+
+static gr_hatch_opts base(double d, double angle) {
+  gr_hatch_opts o = gr_hatch_defaults();
+  o.spacing = d;
+  o.angle = angle;
+  o.alternate = 0;
+  return o;
+}
+
+TEST(square_count_and_length) {
+  /* lines y = k*0.1 with 0.027 <= y < 1.027: k = 1..10, each 1 mm long */
+  gr_rings *r = rect(0.013, 0.027, 1.013, 1.027);
+  gr_layer *l = gr_layer_new(0);
+  gr_hatch_opts o = base(0.1, 0);
+  gr_hatch_report rep = {0};
+  gr_err e;
+  CHECK(gr_hatch_region(r, &o, l, &rep, &e) == GR_OK, "%s", e.msg);
+  gr_layer_stats s;
+  gr_layer_stats_get(l, &s);
+  CHECK(s.vectors[GR_HATCH] == 10, "got %zu vectors", s.vectors[GR_HATCH]);
+  CHECK(rep.hatches == 10, "report %zu", rep.hatches);
+  CHECK_NEAR(s.length[GR_HATCH], 10.0, 1e-9);
+  for (size_t i = 0; i < l->npts; i += 2) {
+    double y = l->xy[2 * i + 1];
+    CHECK_NEAR(y / 0.1, round(y / 0.1), 1e-9);
+    CHECK_NEAR(fabs(l->xy[2 * i + 2] - l->xy[2 * i]), 1.0, 1e-12);
+  }
+  gr_layer_free(l);
+  gr_rings_free(r);
+}
+
+TEST(diagonal_length_is_area_over_d) {
+  gr_rings *r = rect(0.0123, 0.0071, 2.0123, 2.0071);
+  gr_layer *l = gr_layer_new(0);
+  gr_hatch_opts o = base(0.05, 45);
+  gr_err e;
+  CHECK(gr_hatch_region(r, &o, l, NULL, &e) == GR_OK, "%s", e.msg);
+  gr_layer_stats s;
+  gr_layer_stats_get(l, &s);
+  CHECK_NEAR(s.length[GR_HATCH], 4.0 / 0.05, 0.01 * 80);
+  /* every vector on a global line n.p = k d, n = (-sin a, cos a) */
+  double c = cos(PI / 4), sn = sin(PI / 4);
+  for (size_t i = 0; i < l->npts; i++) {
+    double v = (-l->xy[2 * i] * sn + l->xy[2 * i + 1] * c) / 0.05;
+    CHECK_NEAR(v, round(v), 1e-9);
+  }
+  gr_layer_free(l);
+  gr_rings_free(r);
+}
+
+TEST(vectors_inside_nonconvex) {
+  gr_rings *r = lshape(0.01, 0.02);
+  for (int a = 0; a < 180; a += 30) {
+    gr_layer *l = gr_layer_new(0);
+    gr_hatch_opts o = base(0.07, a + 0.5);
+    gr_err e;
+    CHECK(gr_hatch_region(r, &o, l, NULL, &e) == GR_OK, "%s", e.msg);
+    gr_layer_stats s;
+    gr_layer_stats_get(l, &s);
+    CHECK_NEAR(s.length[GR_HATCH], 3.0 / 0.07, 0.02 * 3.0 / 0.07);
+    for (size_t i = 0; i + 1 < l->npts; i += 2) {
+      const double *p = l->xy + 2 * i;
+      CHECK(inside_or_on(r, p[0], p[1]) && inside_or_on(r, p[2], p[3]), "endpoint outside");
+      CHECK(gr_rings_contains(r, 0.5 * (p[0] + p[2]), 0.5 * (p[1] + p[3])), "midpoint outside at %d deg", a);
+      CHECK(!crosses_edges(r, p[0], p[1], p[2], p[3]), "vector crosses boundary");
+    }
+    gr_layer_free(l);
+  }
+  gr_rings_free(r);
+}
+
+TEST(rotation_sequence) {
+  CHECK_NEAR(gr_hatch_angle(0, 45, 67), 45, 1e-12);
+  CHECK_NEAR(gr_hatch_angle(1, 45, 67), 112, 1e-12);
+  CHECK_NEAR(gr_hatch_angle(2, 45, 67), 179, 1e-12);
+  CHECK_NEAR(gr_hatch_angle(3, 45, 67), 246, 1e-12);
+  CHECK_NEAR(gr_hatch_angle(5, 45, 67), 20, 1e-12);
+  CHECK_NEAR(gr_hatch_angle(-1, 45, 67), 338, 1e-12);
+  CHECK_NEAR(gr_hatch_angle(1, 0, 90), 90, 1e-12);
+  CHECK_NEAR(gr_hatch_angle(4, 0, 90), 0, 1e-12);
+  CHECK_NEAR(gr_hatch_angle(1000001, 0, 90), 90, 1e-9);
+}
+
+TEST(alternate_reverses_every_other_line) {
+  gr_rings *r = rect(0.013, 0.027, 1.013, 1.027);
+  gr_layer *l = gr_layer_new(0);
+  gr_hatch_opts o = base(0.1, 0);
+  o.alternate = 1;
+  gr_err e;
+  CHECK(gr_hatch_region(r, &o, l, NULL, &e) == GR_OK, "%s", e.msg);
+  int n = 0;
+  for (size_t i = 0; i + 1 < l->npts; i += 2) {
+    long k = lround(l->xy[2 * i + 1] / 0.1);
+    double dx = l->xy[2 * i + 2] - l->xy[2 * i];
+    CHECK((k % 2 == 0) == (dx > 0), "line %ld dx %g", k, dx);
+    n++;
+  }
+  CHECK(n == 10, "%d vectors", n);
+  gr_layer_free(l);
+  gr_rings_free(r);
+}
+
+static void check_zigzag(const gr_rings *r, double d, double angle, size_t *nblocks, size_t *nvec) {
+  gr_layer *l = gr_layer_new(0);
+  gr_hatch_opts o = base(d, angle);
+  o.pattern = GR_ZIGZAG;
+  gr_hatch_report rep = {0};
+  gr_err e;
+  CHECK(gr_hatch_region(r, &o, l, &rep, &e) == GR_OK, "%s", e.msg);
+  *nblocks = l->nb;
+  *nvec = rep.hatches;
+  size_t links = 0;
+  for (size_t b = 0; b < l->nb; b++) {
+    const gr_block *B = &l->b[b];
+    CHECK(B->shape == GR_OPEN && B->kind == GR_HATCH && B->dir == 2, "block %zu", b);
+    CHECK(B->n % 2 == 0, "odd polyline");
+    const double *p = l->xy + 2 * B->start;
+    for (size_t k = 0; k + 1 < B->n; k++) {
+      const double *q = p + 2 * k;
+      for (int f = 1; f < 4; f++) {
+        double x = q[0] + f * 0.25 * (q[2] - q[0]), y = q[1] + f * 0.25 * (q[3] - q[1]);
+        CHECK(inside_or_on(r, x, y), "point %g,%g of segment %zu outside", x, y, k);
+      }
+      CHECK(!crosses_edges(r, q[0], q[1], q[2], q[3]), "segment crosses boundary");
+      if (k % 2 == 1) links++;
+    }
+  }
+  CHECK(links == rep.links, "links %zu vs %zu", links, rep.links);
+  gr_layer_free(l);
+}
+
+TEST(zigzag_stays_inside) {
+  size_t nb, nv;
+  gr_rings *L = lshape(0.01, 0.02);
+  check_zigzag(L, 0.1, 0, &nb, &nv);
+  /* the L at 0 degrees: 20 lines; lines through the upper arm all link, so
+   * few polylines (not one per vector) */
+  CHECK(nv == 20, "%zu vectors", nv);
+  CHECK(nb <= 3, "%zu polylines", nb);
+  check_zigzag(L, 0.07, 33, &nb, &nv);
+  CHECK(nb < nv / 3, "%zu polylines for %zu vectors", nb, nv);
+  gr_rings_free(L);
+  gr_rings *A = gr_rings_new();
+  add_circle(A, 0.003, 0.001, 1.0, 200, 1);
+  add_circle(A, 0.003, 0.001, 0.5, 100, 0);
+  check_zigzag(A, 0.05, 20, &nb, &nv);
+  /* links beside the convex hole would cross it: only the caps join up */
+  CHECK(nb >= 2 && nb < nv / 2, "%zu polylines for %zu vectors", nb, nv);
+  gr_rings_free(A);
+}
+
+TEST(islands_alternate_and_clip) {
+  gr_rings *r = rect(0.003, 0.007, 4.003, 3.507);
+  gr_layer *l = gr_layer_new(0);
+  gr_hatch_opts o = base(0.1, 0);
+  o.pattern = GR_ISLAND;
+  o.island = 1;
+  o.island_origin[0] = 0;
+  o.island_origin[1] = 0;
+  gr_err e;
+  CHECK(gr_hatch_region(r, &o, l, NULL, &e) == GR_OK, "%s", e.msg);
+  gr_layer_stats s;
+  gr_layer_stats_get(l, &s);
+  CHECK_NEAR(s.length[GR_HATCH], 4.0 * 3.5 / 0.1, 0.02 * 140);
+  int seen[2] = {0, 0};
+  for (size_t i = 0; i + 1 < l->npts; i += 2) {
+    const double *p = l->xy + 2 * i;
+    double mx = 0.5 * (p[0] + p[2]), my = 0.5 * (p[1] + p[3]);
+    long I = (long)floor(mx), J = (long)floor(my);
+    for (int k = 0; k < 2; k++) {
+      CHECK(p[2 * k] >= I - 1e-9 && p[2 * k] <= I + 1 + 1e-9, "x outside island");
+      CHECK(p[2 * k + 1] >= J - 1e-9 && p[2 * k + 1] <= J + 1 + 1e-9, "y outside island");
+    }
+    int even = ((I + J) & 1) == 0;
+    if (even) CHECK(fabs(p[3] - p[1]) < 1e-9, "even island not along x");
+    else CHECK(fabs(p[2] - p[0]) < 1e-9, "odd island not along y");
+    seen[even]++;
+  }
+  CHECK(seen[0] > 0 && seen[1] > 0, "both directions");
+  gr_layer_free(l);
+  gr_rings_free(r);
+}
+
+/* Hatching two adjacent squares separately gives the union's vectors split
+ * at the shared edge: same lines, endpoints meeting exactly. */
+TEST(global_line_family) {
+  double sx = 0.0031, sy = 0.0047;
+  gr_rings *A = rect(sx, sy, 1 + sx, 1 + sy), *B = rect(1 + sx, sy, 2 + sx, 1 + sy);
+  gr_rings *U = rect(sx, sy, 2 + sx, 1 + sy);
+  gr_layer *la = gr_layer_new(0), *lb = gr_layer_new(0), *lu = gr_layer_new(0);
+  gr_hatch_opts o = base(0.05, 30);
+  gr_err e;
+  CHECK(gr_hatch_region(A, &o, la, NULL, &e) == GR_OK, "%s", e.msg);
+  CHECK(gr_hatch_region(B, &o, lb, NULL, &e) == GR_OK, "%s", e.msg);
+  CHECK(gr_hatch_region(U, &o, lu, NULL, &e) == GR_OK, "%s", e.msg);
+  gr_layer_stats a, b, u;
+  gr_layer_stats_get(la, &a);
+  gr_layer_stats_get(lb, &b);
+  gr_layer_stats_get(lu, &u);
+  CHECK_NEAR(a.length[GR_HATCH] + b.length[GR_HATCH], u.length[GR_HATCH], 1e-9);
+  /* each A vector ending on x = 1 + sx meets a B vector starting there, and
+   * together they are one union vector */
+  int met = 0;
+  for (size_t i = 0; i + 1 < la->npts; i += 2) {
+    const double *p = la->xy + 2 * i;
+    if (fabs(p[2] - (1 + sx)) > 1e-12) continue;
+    int found = 0;
+    for (size_t j = 0; j + 1 < lb->npts && !found; j += 2) {
+      const double *q = lb->xy + 2 * j;
+      if (q[0] == p[2] && q[1] == p[3]) {
+        found = 1;
+        int inu = 0;
+        for (size_t k = 0; k + 1 < lu->npts; k += 2) {
+          const double *w = lu->xy + 2 * k;
+          if (fabs(w[0] - p[0]) < 1e-12 && fabs(w[1] - p[1]) < 1e-12 && fabs(w[2] - q[2]) < 1e-12 && fabs(w[3] - q[3]) < 1e-12) inu = 1;
+        }
+        CHECK(inu, "joined vector not in the union");
+      }
+    }
+    CHECK(found, "A vector end (%g, %g) has no B partner", p[2], p[3]);
+    met += found;
+  }
+  CHECK(met > 5, "%d meetings", met);
+  gr_layer_free(la); gr_layer_free(lb); gr_layer_free(lu);
+  gr_rings_free(A); gr_rings_free(B); gr_rings_free(U);
+}
+
+TEST(min_length_drops_and_counts) {
+  /* triangle: line y = k/10 (k = 1..10) has length 1.005 - y */
+  gr_rings *r = gr_rings_new();
+  double p[6] = {0, 0.005, 1, 0.005, 0, 1.005};
+  gr_rings_add(r, p, 3);
+  gr_layer *l = gr_layer_new(0);
+  gr_hatch_opts o = base(0.1, 0);
+  o.min_length = 0.3;
+  gr_hatch_report rep = {0};
+  gr_err e;
+  CHECK(gr_hatch_region(r, &o, l, &rep, &e) == GR_OK, "%s", e.msg);
+  CHECK(rep.hatches == 7, "%zu kept", rep.hatches);
+  CHECK(rep.dropped == 3, "%zu dropped", rep.dropped);
+  CHECK_NEAR(rep.dropped_length, 0.205 + 0.105 + 0.005, 1e-9);
+  gr_layer_stats s;
+  gr_layer_stats_get(l, &s);
+  CHECK_NEAR(s.length[GR_HATCH], 0.905 + 0.805 + 0.705 + 0.605 + 0.505 + 0.405 + 0.305, 1e-9);
+  gr_layer_free(l);
+  gr_rings_free(r);
+}
+
+/* Square with miter offset: one contour at b, hatch region at b too. */
+TEST(layer_contour_and_region) {
+  gr_rings *r = rect(0.013, 0.027, 2.013, 2.027);
+  gr_layer *l = gr_layer_new(0.5);
+  gr_hatch_opts o = base(0.1, 0);
+  o.offset = gr_hatch_miter_offset;
+  gr_hatch_report rep;
+  gr_err e;
+  CHECK(gr_hatch_layer(r, &o, l, &rep, &e) == GR_OK, "%s", e.msg);
+  CHECK(rep.contours == 1 && rep.thin_walls == 0, "%zu contours", rep.contours);
+  CHECK_NEAR(rep.hatch_offset, 0.05, 1e-12);
+  CHECK(l->nb >= 2 && l->b[0].kind == GR_CONTOUR && l->b[0].shape == GR_CLOSED && l->b[0].dir == 1, "contour first");
+  const gr_block *c = &l->b[0];
+  CHECK(c->n == 5, "%zu points", c->n);
+  CHECK_NEAR(gr_block_length(l, c), 4 * 1.9, 1e-9);
+  for (size_t k = 0; k < c->n; k++) CHECK_NEAR(dist_to_edges(r, l->xy[2 * (c->start + k)], l->xy[2 * (c->start + k) + 1]), 0.05, 1e-9);
+  /* hatch region [0.063, 1.963] x [0.077, 1.977]: lines k = 1..19, 1.9 long */
+  gr_layer_stats s;
+  gr_layer_stats_get(l, &s);
+  CHECK(s.vectors[GR_HATCH] == 19, "%zu hatches", s.vectors[GR_HATCH]);
+  CHECK_NEAR(s.length[GR_HATCH], 19 * 1.9, 1e-9);
+  CHECK_NEAR(l->z, 0.5, 0);
+  /* contour_first = 0 puts hatches first; 2 contours at b and b + d */
+  gr_layer_clear(l, 0);
+  o.contour_first = 0;
+  o.contours = 2;
+  CHECK(gr_hatch_layer(r, &o, l, &rep, &e) == GR_OK, "%s", e.msg);
+  CHECK(rep.contours == 2, "%zu contours", rep.contours);
+  CHECK_NEAR(rep.hatch_offset, 0.15, 1e-12);
+  /* gap moves the hatch region: 0.05 + 0.03 */
+  gr_layer_clear(l, 0);
+  o.contours = 1;
+  o.gap = 0.03;
+  CHECK(gr_hatch_layer(r, &o, l, &rep, &e) == GR_OK, "%s", e.msg);
+  CHECK_NEAR(rep.hatch_offset, 0.08, 1e-12);
+  gr_layer_stats_get(l, &s);
+  CHECK(s.vectors[GR_HATCH] == 18, "%zu hatches with gap", s.vectors[GR_HATCH]);
+  CHECK_NEAR(s.length[GR_HATCH], 18 * (2 - 0.16), 1e-9);
+  CHECK(l->b[0].kind == GR_HATCH && l->b[l->nb - 1].kind == GR_CONTOUR, "hatches first");
+  gr_layer_free(l);
+  gr_rings_free(r);
+}
+
+/* A strip 0.06 wide cannot hold a contour at b = 0.05: thin-wall scan. */
+TEST(thin_wall_scanned_and_counted) {
+  gr_rings *r = rect(0.013, 0.027, 2.013, 2.027);
+  double p[8] = {3, 0, 5, 0, 5, 0.06, 3, 0.06};
+  gr_rings_add(r, p, 4);
+  gr_layer *l = gr_layer_new(0);
+  gr_hatch_opts o = base(0.1, 0);
+  o.offset = gr_hatch_miter_offset;
+  gr_hatch_report rep;
+  gr_err e;
+  CHECK(gr_hatch_layer(r, &o, l, &rep, &e) == GR_OK, "%s", e.msg);
+  CHECK(rep.thin_walls == 1 && l->thin_walls == 1, "thin walls %d/%d", rep.thin_walls, l->thin_walls);
+  int instrip = 0;
+  for (size_t b = 0; b < l->nb; b++) {
+    const gr_block *B = &l->b[b];
+    const double *q = l->xy + 2 * B->start;
+    if (B->kind != GR_CONTOUR || q[0] < 2.5) continue;
+    instrip++;
+    double len = gr_block_length(l, B);
+    CHECK(len > 3.5, "thin-wall scan only %g mm", len);
+    for (size_t k = 0; k < B->n; k++)
+      CHECK(q[2 * k] > 3 && q[2 * k] < 5 && q[2 * k + 1] > 0 && q[2 * k + 1] < 0.06, "outside strip");
+  }
+  CHECK(instrip == 1, "%d strip scans", instrip);
+  /* a diagonal strip (30 degrees, 0.04 wide) alone: scanned inside it */
+  gr_rings *dg = gr_rings_new();
+  double c = cos(PI / 6), sn = sin(PI / 6), q[8] = {0, 0, 2, 0, 2, 0.04, 0, 0.04};
+  for (int k = 0; k < 4; k++) gr_rings_point(dg, 1 + q[2 * k] * c - q[2 * k + 1] * sn, 1 + q[2 * k] * sn + q[2 * k + 1] * c);
+  gr_rings_close(dg);
+  gr_layer_clear(l, 0);
+  CHECK(gr_hatch_layer(dg, &o, l, &rep, &e) == GR_OK, "%s", e.msg);
+  CHECK(rep.thin_walls == 1 && l->nb == 1, "diagonal: %d thin walls, %zu blocks", rep.thin_walls, l->nb);
+  if (l->nb == 1) {
+    CHECK(gr_block_length(l, &l->b[0]) > 3.5, "diagonal scan %g mm", gr_block_length(l, &l->b[0]));
+    for (size_t k = 0; k < l->b[0].n; k++)
+      CHECK(gr_rings_contains(dg, l->xy[2 * k], l->xy[2 * k + 1]), "diagonal scan point outside");
+  }
+  gr_rings_free(dg);
+  /* the default offset (whatever is linked) also scans the strip */
+  gr_layer_clear(l, 0);
+  o.offset = NULL;
+  CHECK(gr_hatch_layer(r, &o, l, &rep, &e) == GR_OK, "%s", e.msg);
+  CHECK(rep.thin_walls == 1, "default offset: thin walls %d", rep.thin_walls);
+  gr_layer_free(l);
+  gr_rings_free(r);
+}
+
+TEST(bad_input) {
+  gr_rings *r = rect(0, 0, 1, 1);
+  gr_layer *l = gr_layer_new(0);
+  gr_err e;
+  gr_hatch_opts o = base(-0.05, 0);
+  CHECK(gr_hatch_region(r, &o, l, NULL, &e) == GR_EARG, "spacing");
+  CHECK(strstr(e.msg, "spacing") && strstr(e.msg, "-0.05"), "%s", e.msg);
+  o = base(0.1, NAN);
+  CHECK(gr_hatch_layer(r, &o, l, NULL, &e) == GR_EARG && strstr(e.msg, "angle"), "%s", e.msg);
+  o = base(0.1, 0);
+  o.contours = -1;
+  CHECK(gr_hatch_layer(r, &o, l, NULL, &e) == GR_EARG && strstr(e.msg, "contours"), "%s", e.msg);
+  o = base(0.1, 0);
+  o.pattern = GR_ISLAND;
+  o.island = 0;
+  CHECK(gr_hatch_region(r, &o, l, NULL, &e) == GR_EARG && strstr(e.msg, "island"), "%s", e.msg);
+  o = base(0.1, 0);
+  o.beam_offset = -1;
+  CHECK(gr_hatch_layer(r, &o, l, NULL, &e) == GR_EARG && strstr(e.msg, "beam_offset"), "%s", e.msg);
+  o = base(0.1, 0);
+  o.min_length = NAN;
+  CHECK(gr_hatch_layer(r, &o, l, NULL, &e) == GR_EARG && strstr(e.msg, "min_length"), "%s", e.msg);
+  o = base(1e-9, 0);
+  CHECK(gr_hatch_region(r, &o, l, NULL, &e) == GR_EARG && strstr(e.msg, "lines"), "%s", e.msg);
+  CHECK(l->nb == 0, "nothing added on error");
+  /* an empty region is fine and gives nothing */
+  gr_rings *z = gr_rings_new();
+  o = base(0.1, 0);
+  CHECK(gr_hatch_layer(z, &o, l, NULL, &e) == GR_OK && l->nb == 0, "%s", e.msg);
+  gr_rings_free(z);
+  gr_layer_free(l);
+  gr_rings_free(r);
+}
+
+int main(void) {
+  RUN(square_count_and_length);
+  RUN(diagonal_length_is_area_over_d);
+  RUN(vectors_inside_nonconvex);
+  RUN(rotation_sequence);
+  RUN(alternate_reverses_every_other_line);
+  RUN(zigzag_stays_inside);
+  RUN(islands_alternate_and_clip);
+  RUN(global_line_family);
+  RUN(min_length_drops_and_counts);
+  RUN(layer_contour_and_region);
+  RUN(thin_wall_scanned_and_counted);
+  RUN(bad_input);
+  DONE();
+}

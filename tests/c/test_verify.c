@@ -1,0 +1,184 @@
+/* test_verify.c: pore / overmelt fractions and contour deviation against
+ * analytic areas and distances. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include "check.h"
+#include "hatch.h"
+#include "verify.h"
+
+static const double PI = 3.14159265358979323846;
+
+static void add_circle(gr_rings *r, double cx, double cy, double R, int n, int ccw) {
+  for (int i = 0; i < n; i++) {
+    double t = 2 * PI * i / n * (ccw ? 1 : -1);
+    gr_rings_point(r, cx + R * cos(t), cy + R * sin(t));
+  }
+  gr_rings_close(r);
+}
+
+static gr_rings *rect(double x0, double y0, double x1, double y1) {
+  gr_rings *r = gr_rings_new();
+  double p[8] = {x0, y0, x1, y0, x1, y1, x0, y1};
+  gr_rings_add(r, p, 4);
+  return r;
+}
+
+/* A disc hatched with one contour at b = d/2 and the hatch region at d:
+ * melted everywhere, nothing outside (up to pixel effects). */
+TEST(disc_properly_hatched) {
+  gr_rings *r = gr_rings_new();
+  add_circle(r, 0.011, 0.007, 1.0, 720, 1);
+  for (int a = 0; a < 180; a += 45) {
+    gr_layer *l = gr_layer_new(0);
+    gr_hatch_opts o = gr_hatch_defaults();
+    o.spacing = 0.1;
+    o.angle = a;
+    o.offset = gr_hatch_miter_offset; /* exact for the convex 720-gon */
+    gr_err e;
+    CHECK(gr_hatch_layer(r, &o, l, NULL, &e) == GR_OK, "%s", e.msg);
+    gr_verify_opts vo = gr_verify_defaults();
+    vo.track = 0.1;
+    gr_verify_result v;
+    CHECK(gr_verify_layer(r, l, &vo, &v, &e) == GR_OK, "%s", e.msg);
+    CHECK(v.pore < 0.005, "pore %g at %d deg", v.pore, a);
+    CHECK(v.overmelt < 0.01, "overmelt %g", v.overmelt);
+    CHECK_NEAR(v.solid_area, PI, 0.01 * PI);
+    CHECK(v.max_dev < 1e-6, "contour deviation %g", v.max_dev);
+    CHECK(v.contour_points == 720, "%zu contour points", v.contour_points);
+    gr_layer_free(l);
+  }
+  gr_rings_free(r);
+}
+
+/* The same with the default offset (the distance-field gr_offset_rings
+ * when linked) and with two contours: still dense, no overmelt. */
+TEST(disc_default_offset) {
+  gr_rings *r = gr_rings_new();
+  add_circle(r, 0.011, 0.007, 1.0, 720, 1);
+  add_circle(r, 0.2, 0.1, 0.3, 180, 0); /* a hole */
+  double area = PI * (1 - 0.09);
+  for (int nc = 1; nc <= 2; nc++) {
+    gr_layer *l = gr_layer_new(0);
+    gr_hatch_opts o = gr_hatch_defaults();
+    o.spacing = 0.1;
+    o.angle = 67;
+    o.contours = nc;
+    gr_err e;
+    CHECK(gr_hatch_layer(r, &o, l, NULL, &e) == GR_OK, "%s", e.msg);
+    gr_verify_opts vo = gr_verify_defaults();
+    vo.track = 0.1;
+    vo.contours = nc;
+    gr_verify_result v;
+    CHECK(gr_verify_layer(r, l, &vo, &v, &e) == GR_OK, "%s", e.msg);
+    CHECK(v.pore < 0.005, "pore %g with %d contours", v.pore, nc);
+    CHECK(v.overmelt < 0.01, "overmelt %g", v.overmelt);
+    CHECK_NEAR(v.solid_area, area, 0.01 * area);
+    CHECK(v.max_dev < 0.01, "contour deviation %g", v.max_dev); /* within a tenth of d */
+    gr_layer_free(l);
+  }
+  gr_rings_free(r);
+}
+
+/* Spacing 3d with track d melts a third of the area: pore ~ 2/3. */
+TEST(under_hatched_shows_pores) {
+  gr_rings *r = rect(0.013, 0.027, 3.013, 3.027);
+  gr_layer *l = gr_layer_new(0);
+  gr_hatch_opts o = gr_hatch_defaults();
+  o.spacing = 0.3;
+  o.angle = 0;
+  gr_err e;
+  CHECK(gr_hatch_region(r, &o, l, NULL, &e) == GR_OK, "%s", e.msg);
+  gr_verify_opts vo = gr_verify_defaults();
+  vo.track = 0.1;
+  gr_verify_result v;
+  CHECK(gr_verify_layer(r, l, &vo, &v, &e) == GR_OK, "%s", e.msg);
+  /* 10 lines of 3 mm x 0.1 inside a 9 mm^2 square, caps half outside */
+  CHECK_NEAR(v.pore, 2.0 / 3.0, 0.02);
+  CHECK_NEAR(v.solid_area, 9.0, 0.05);
+  gr_layer_free(l);
+  gr_rings_free(r);
+}
+
+/* One vector outside a unit square: a capsule of area 1*0.1 + pi*0.05^2
+ * melted outside, the whole square a pore. */
+TEST(vector_outside_overmelts) {
+  gr_rings *r = rect(0, 0, 1, 1);
+  gr_layer *l = gr_layer_new(0);
+  gr_layer_add_segment(l, GR_HATCH, 0, 3, 0.5, 4, 0.5);
+  gr_verify_opts vo = gr_verify_defaults();
+  vo.track = 0.1;
+  vo.pixel = 0.005;
+  gr_verify_result v;
+  gr_err e;
+  CHECK(gr_verify_layer(r, l, &vo, &v, &e) == GR_OK, "%s", e.msg);
+  CHECK_NEAR(v.overmelt, 0.1 + PI * 0.0025, 0.003);
+  CHECK_NEAR(v.pore, 1.0, 1e-12);
+  CHECK_NEAR(v.melt_area, 0.1 + PI * 0.0025, 0.003);
+  /* a diagonal capsule inside: melted area 0.1 * sqrt(2) + caps */
+  gr_layer_clear(l, 0);
+  gr_layer_add_segment(l, GR_HATCH, 0, 0.2, 0.2, 0.8, 0.8);
+  CHECK(gr_verify_layer(r, l, &vo, &v, &e) == GR_OK, "%s", e.msg);
+  CHECK_NEAR(1 - v.pore, 0.1 * 0.6 * sqrt(2) + PI * 0.0025, 0.003);
+  CHECK_NEAR(v.overmelt, 0, 1e-12);
+  gr_layer_free(l);
+  gr_rings_free(r);
+}
+
+/* An exact circle contour at radius R - b deviates ~0; at R - b - 0.01 it
+ * deviates by 0.01. */
+TEST(contour_deviation) {
+  gr_rings *r = gr_rings_new();
+  add_circle(r, 0, 0, 1.0, 4000, 1);
+  double b = 0.05;
+  for (int shift = 0; shift < 2; shift++) {
+    gr_layer *l = gr_layer_new(0);
+    int n = 500;
+    double *p = malloc((n + 1) * 2 * sizeof *p), R = 1 - b - 0.01 * shift;
+    for (int i = 0; i <= n; i++) {
+      p[2 * i] = R * cos(2 * PI * (i % n) / n);
+      p[2 * i + 1] = R * sin(2 * PI * (i % n) / n);
+    }
+    gr_layer_add(l, GR_CLOSED, GR_CONTOUR, 0, 1, p, n + 1);
+    gr_verify_opts vo = gr_verify_defaults();
+    vo.track = 0.1;
+    gr_verify_result v;
+    gr_err e;
+    CHECK(gr_verify_layer(r, l, &vo, &v, &e) == GR_OK, "%s", e.msg);
+    CHECK(v.contour_points == (size_t)n, "%zu points", v.contour_points);
+    /* polygon sagitta 1 - cos(pi/4000) ~ 3e-7 */
+    CHECK_NEAR(v.max_dev, 0.01 * shift, 1e-6);
+    CHECK_NEAR(v.mean_dev, 0.01 * shift, 1e-6);
+    free(p);
+    gr_layer_free(l);
+  }
+  gr_rings_free(r);
+}
+
+TEST(bad_input) {
+  gr_rings *r = rect(0, 0, 1, 1);
+  gr_layer *l = gr_layer_new(0);
+  gr_verify_opts vo = gr_verify_defaults();
+  gr_verify_result v;
+  gr_err e;
+  vo.track = -1;
+  CHECK(gr_verify_layer(r, l, &vo, &v, &e) == GR_EARG && strstr(e.msg, "track") && strstr(e.msg, "-1"), "%s", e.msg);
+  vo = gr_verify_defaults();
+  vo.pixel = 0;
+  CHECK(gr_verify_layer(r, l, &vo, &v, &e) == GR_EARG && strstr(e.msg, "pixel"), "%s", e.msg);
+  vo = gr_verify_defaults();
+  vo.pixel = 1e-7;
+  CHECK(gr_verify_layer(r, l, &vo, &v, &e) == GR_EARG && strstr(e.msg, "pixels"), "%s", e.msg);
+  gr_layer_free(l);
+  gr_rings_free(r);
+}
+
+int main(void) {
+  RUN(disc_properly_hatched);
+  RUN(disc_default_offset);
+  RUN(under_hatched_shows_pores);
+  RUN(vector_outside_overmelts);
+  RUN(contour_deviation);
+  RUN(bad_input);
+  DONE();
+}
