@@ -75,3 +75,4 @@ clean:
 build/bench/%: bench/%.c $(CORE_OBJ)
 	@mkdir -p build/bench
 	$(CC) $(ALL_CFLAGS) -O3 -o $@ $< $(CORE_OBJ) $(LIBS)
+.SECONDARY:

@@ -1,7 +1,602 @@
-/* bind_place.c: Lua binding of the place primitive (to be written). */
+/* bind_place.c: Lua binding of placement (gradus.place.*) and of the
+ * knowledge base (gradus.kb.*).
+ *   local job = gradus.place.job{cell=2, cells={nx,ny,nz}, ...}
+ *   local s = job:spec{surface="primitive", thickness="0.1", kind="sheet"}
+ *   job:voxel(i, j, k, {spec=s, laser=1, seq=key})
+ *   job:domain(field, {skin=0.2}) ; job:machine(machine_table)
+ *   local stats, kept = job:run{output="x.cli", format="binary", kb=dir|true|false, ...}
+ */
+#include <stdlib.h>
+#include <string.h>
+#include <math.h>
+#include <unistd.h>
 #include "bind.h"
+#include "cli.h"
+#include "kb.h"
+#include "place.h"
+
+#define JOB_MT "gradus.job"
+
+typedef struct ljob { gr_job *j; } ljob;
+
+static gr_job *check_job(lua_State *L, int idx) {
+  ljob *b = luaL_checkudata(L, idx, JOB_MT);
+  if (!b->j) luaL_argerror(L, idx, "job is closed");
+  return b->j;
+}
+
+static int job_gc(lua_State *L) {
+  ljob *b = luaL_checkudata(L, 1, JOB_MT);
+  gr_job_free(b->j);
+  b->j = NULL;
+  return 0;
+}
+
+static int pattern_of(lua_State *L, const char *s) {
+  if (!strcmp(s, "parallel")) return GR_PATTERN_PARALLEL;
+  if (!strcmp(s, "zigzag")) return GR_PATTERN_ZIGZAG;
+  if (!strcmp(s, "island")) return GR_PATTERN_ISLAND;
+  return luaL_error(L, "bad option 'pattern' (parallel, zigzag or island, got '%s')", s);
+}
+
+/* gradus.place.job{...} */
+static int l_job(lua_State *L) {
+  luaL_checktype(L, 1, LUA_TTABLE);
+  ljob *b = lua_newuserdatauv(L, sizeof *b, 1);
+  b->j = NULL;
+  luaL_setmetatable(L, JOB_MT);
+  gr_job_opts o = gr_job_defaults();
+  o.cell = gr_opt_number(L, 1, "cell", o.cell);
+  gr_opt_vec(L, 1, "origin", 3, o.origin);
+  double n[3] = {1, 1, 1};
+  gr_opt_vec(L, 1, "cells", 3, n);
+  for (int a = 0; a < 3; a++) {
+    if (!(n[a] >= 1 && n[a] <= 100000 && n[a] == (int)n[a]))
+      return luaL_error(L, "bad option 'cells' (whole numbers >= 1 expected, got %g)", n[a]);
+    o.n[a] = (int)n[a];
+  }
+  o.layer = gr_opt_number(L, 1, "layer", o.layer);
+  o.hatch = gr_opt_number(L, 1, "hatch", o.hatch);
+  o.beam_offset = gr_opt_number(L, 1, "beam_offset", o.beam_offset);
+  o.track = gr_opt_number(L, 1, "track", o.track);
+  o.contours = gr_opt_integer(L, 1, "contours", o.contours);
+  o.contour_first = gr_opt_boolean(L, 1, "contour_first", o.contour_first);
+  o.angle = gr_opt_number(L, 1, "angle", o.angle);
+  o.rotation = gr_opt_number(L, 1, "rotation", o.rotation);
+  o.pattern = pattern_of(L, gr_opt_string(L, 1, "pattern", "parallel"));
+  o.alternate = gr_opt_boolean(L, 1, "alternate", 1);
+  o.slice_cell = gr_opt_number(L, 1, "slice_cell", o.slice_cell);
+  o.res = gr_opt_integer(L, 1, "res", o.res);
+  const char *mode = gr_opt_string(L, 1, "mode", "exact");
+  if (strcmp(mode, "exact") && strcmp(mode, "mesh"))
+    return luaL_error(L, "bad option 'mode' (exact or mesh, got '%s')", mode);
+  o.exact = !strcmp(mode, "exact");
+  o.quant = gr_opt_number(L, 1, "quant", o.quant);
+  o.min_length = gr_opt_number(L, 1, "min_length", o.min_length);
+  o.threads = gr_opt_integer(L, 1, "threads", o.threads);
+  o.nlasers = gr_opt_integer(L, 1, "lasers", 1);
+  gr_err e;
+  gr_err_clear(&e);
+  b->j = gr_job_new(&o, &e);
+  if (!b->j) return gr_lua_error(L, &e);
+  return 1;
+}
+
+/* job:spec{surface=, level=, kind=, side=, thickness=, inside=} -> index (1-based) */
+static int l_spec(lua_State *L) {
+  gr_job *j = check_job(L, 1);
+  luaL_checktype(L, 2, LUA_TTABLE);
+  gr_spec s;
+  memset(&s, 0, sizeof s);
+  const char *name = gr_opt_string(L, 2, "surface", "primitive");
+  s.surface = gr_tpms_lookup(name);
+  if (s.surface < 0) return luaL_error(L, "bad option 'surface' (unknown surface '%s'; valid: %s)", name, gr_tpms_names());
+  s.level = gr_opt_number(L, 2, "level", 0);
+  const char *kind = gr_opt_string(L, 2, "kind", "sheet");
+  if (strcmp(kind, "sheet") && strcmp(kind, "network"))
+    return luaL_error(L, "bad option 'kind' (sheet or network, got '%s')", kind);
+  s.network = !strcmp(kind, "network");
+  s.side = gr_opt_integer(L, 2, "side", -1);
+  lua_getfield(L, 2, "thickness");
+  if (lua_type(L, -1) == LUA_TNUMBER) {
+    double t = lua_tonumber(L, -1);
+    snprintf(s.thickness, sizeof s.thickness, "%.17g", t);
+  } else if (lua_type(L, -1) == LUA_TSTRING) {
+    size_t len;
+    const char *t = lua_tolstring(L, -1, &len);
+    if (len >= sizeof s.thickness) return luaL_error(L, "bad option 'thickness' (expression longer than %d)", (int)sizeof s.thickness - 1);
+    memcpy(s.thickness, t, len + 1);
+  } else {
+    return luaL_error(L, "bad option 'thickness' (a number or an expression in x,y,z,u,v,w,L expected, got %s)",
+                      luaL_typename(L, -1));
+  }
+  lua_pop(L, 1);
+  const char *in = gr_opt_string(L, 2, "inside", "");
+  if (strlen(in) >= sizeof s.inside) return luaL_error(L, "bad option 'inside' (expression too long)");
+  strcpy(s.inside, in);
+  gr_err e;
+  gr_err_clear(&e);
+  int idx = gr_job_add_spec(j, &s, &e);
+  if (idx < 0) return luaL_error(L, "bad option 'thickness' (%s)", e.msg);
+  lua_pushinteger(L, idx + 1);
+  return 1;
+}
+
+/* job:voxel(i, j, k, {spec=, laser=, seq=}) with 0-based i,j,k; laser 1-based */
+static int l_voxel(lua_State *L) {
+  gr_job *j = check_job(L, 1);
+  int i = (int)luaL_checkinteger(L, 2), jj = (int)luaL_checkinteger(L, 3), k = (int)luaL_checkinteger(L, 4);
+  int spec = gr_opt_integer(L, 5, "spec", 1) - 1;
+  int laser = gr_opt_integer(L, 5, "laser", 0) - 1;
+  const gr_job_opts *o = gr_job_options(j);
+  double seq = gr_opt_number(L, 5, "seq", i + o->n[0] * (double)jj);
+  gr_err e;
+  gr_err_clear(&e);
+  if (gr_job_set_voxel(j, i, jj, k, spec, laser, seq, &e)) return gr_lua_error(L, &e);
+  return 0;
+}
+
+static int l_domain(lua_State *L) {
+  gr_job *j = check_job(L, 1);
+  gr_field *f = gr_to_field(L, 2);
+  double skin = gr_opt_number(L, 3, "skin", 0);
+  gr_err e;
+  gr_err_clear(&e);
+  int rc = gr_job_set_domain(j, f, skin, &e);
+  gr_field_free(f);
+  if (rc) return gr_lua_error(L, &e);
+  return 0;
+}
+
+/* job:machine(m) with m as normalised by gradus.lasers */
+static int l_machine(lua_State *L) {
+  gr_job *j = check_job(L, 1);
+  luaL_checktype(L, 2, LUA_TTABLE);
+  lua_getfield(L, 2, "lasers");
+  int n = (int)luaL_len(L, -1);
+  gr_machine m = gr_machine_default(n);
+  static const char *const kinds[GR_NKINDS] = {"contour", "hatch", "edge"};
+  for (int l = 0; l < n && l < GR_MAX_LASERS; l++) {
+    lua_geti(L, -1, l + 1);
+    int t = lua_gettop(L);
+    for (int k = 0; k < GR_NKINDS; k++) {
+      lua_getfield(L, t, kinds[k]);
+      m.speed[l][k] = gr_opt_number(L, -1, "speed", m.speed[l][k]);
+      lua_pop(L, 1);
+    }
+    lua_getfield(L, t, "field");
+    if (lua_istable(L, -1)) {
+      gr_opt_vec(L, -1, "lo", 2, m.lo[l]);
+      gr_opt_vec(L, -1, "hi", 2, m.hi[l]);
+    }
+    lua_pop(L, 2);
+  }
+  lua_pop(L, 1);
+  m.jump_speed = gr_opt_number(L, 2, "jump_speed", m.jump_speed);
+  m.jump_delay = gr_opt_number(L, 2, "jump_delay", 0);
+  m.polygon_delay = gr_opt_number(L, 2, "polygon_delay", 0);
+  m.recoat_time = gr_opt_number(L, 2, "recoat_time", 0);
+  gr_err e;
+  gr_err_clear(&e);
+  if (gr_job_set_machine(j, &m, &e)) return gr_lua_error(L, &e);
+  return 0;
+}
+
+static int l_layers(lua_State *L) {
+  lua_pushinteger(L, gr_job_layers(check_job(L, 1)));
+  return 1;
+}
+
+/* ---- run ---- */
+typedef struct sinkctx {
+  gr_cli_writer *w[GR_MAX_LASERS + 1]; /* [0] all, or one per laser when split */
+  int split, nlasers;
+  gr_layer *tmp;
+  int *keep;           /* layer numbers to keep */
+  int nkeep;
+  gr_layer **kept;
+  double t_write;      /* seconds spent writing */
+} sinkctx;
+
+static int sink(void *ud, int g, const gr_layer *l, gr_err *e) {
+  sinkctx *s = ud;
+  double t0 = gr_now();
+  int rc = GR_OK;
+  if (s->split) {
+    for (int la = 0; la < s->nlasers && rc == GR_OK; la++) {
+      gr_layer_clear(s->tmp, l->z);
+      for (size_t b = 0; b < l->nb; b++)
+        if (l->b[b].laser == la &&
+            gr_layer_add(s->tmp, l->b[b].shape, l->b[b].kind, la, l->b[b].dir, l->xy + 2 * l->b[b].start, l->b[b].n))
+          return gr_fail(e, GR_EMEM, "out of memory");
+      rc = gr_cli_write_layer(s->w[la + 1], s->tmp, e);
+    }
+  }
+  if (rc == GR_OK && s->w[0]) rc = gr_cli_write_layer(s->w[0], l, e);
+  s->t_write += gr_now() - t0;
+  for (int i = 0; i < s->nkeep && rc == GR_OK; i++)
+    if (s->keep[i] == g && !s->kept[i]) {
+      s->kept[i] = gr_layer_new(l->z);
+      if (!s->kept[i] || gr_layer_append(s->kept[i], l, 0, 0)) return gr_fail(e, GR_EMEM, "out of memory");
+    }
+  return rc;
+}
+
+typedef struct progctx { int quiet; double t0, last; } progctx;
+
+static void progress(void *ud, const char *stage, long done, long total) {
+  progctx *p = ud;
+  if (p->quiet) return;
+  double now = gr_now();
+  if (done < total && now - p->last < 0.25) return;
+  p->last = now;
+  double el = now - p->t0, rate = el > 0 ? done / el : 0;
+  fprintf(stderr, "\r%s: %ld/%ld (%.1f/s, %.0f s left)   %s", stage, done, total, rate,
+          rate > 0 ? (total - done) / rate : 0.0, done >= total ? "\n" : "");
+  if (done >= total) p->t0 = now;
+  fflush(stderr);
+}
+
+static void set_num(lua_State *L, const char *k, double v) { lua_pushnumber(L, v); lua_setfield(L, -2, k); }
+static void set_int(lua_State *L, const char *k, long long v) { lua_pushinteger(L, v); lua_setfield(L, -2, k); }
+
+static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) {
+  const gr_job_stats *st = gr_job_get_stats(j);
+  lua_newtable(L);
+  set_int(L, "layers", st->layers);
+  set_int(L, "layers_total", gr_job_layers(j));
+  set_int(L, "voxels", st->voxels);
+  set_int(L, "trimmed_voxels", st->trimmed);
+  lua_newtable(L);
+  set_int(L, "unique", st->classes);
+  set_int(L, "built", st->built);
+  set_int(L, "reused", st->reused);
+  set_int(L, "corrupt_rebuilt", st->kb_corrupt);
+  set_num(L, "reuse_ratio", st->classes ? (double)st->voxels / st->classes : 0);
+  lua_setfield(L, -2, "templates");
+  lua_newtable(L);
+  static const char *const kinds[GR_NKINDS] = {"contour", "hatch", "edge"};
+  for (int k = 0; k < GR_NKINDS; k++) {
+    lua_newtable(L);
+    set_int(L, "count", (long long)st->vectors[k]);
+    set_num(L, "length", st->length[k]);
+    lua_setfield(L, -2, kinds[k]);
+  }
+  lua_setfield(L, -2, "vectors");
+  lua_newtable(L);
+  set_int(L, "count", (long long)st->jumps);
+  set_num(L, "length", st->jump_length);
+  lua_setfield(L, -2, "jumps");
+  lua_newtable(L);
+  const gr_job_opts *o = gr_job_options(j);
+  double total = 0;
+  for (int la = 0; la < o->nlasers; la++) total += st->laser_time[la];
+  for (int la = 0; la < o->nlasers; la++) {
+    lua_newtable(L);
+    set_num(L, "length", st->laser_length[la]);
+    set_num(L, "scan_time_s", st->laser_time[la]);
+    set_num(L, "share", total > 0 ? st->laser_time[la] / total : 0);
+    lua_rawseti(L, -2, la + 1);
+  }
+  lua_setfield(L, -2, "lasers");
+  set_num(L, "build_time_s", st->build_time);
+  set_num(L, "balanced_time_s", st->balanced_time);
+  set_num(L, "balance_efficiency", st->build_time > 0 ? st->balanced_time / st->build_time : 1);
+  set_int(L, "thin_walls", st->thin_walls);
+  if (st->layers > 0)
+    set_num(L, "relative_density", st->solid_area / (st->layers * o->n[0] * (double)o->n[1] * o->cell * o->cell));
+  set_num(L, "solid_volume_mm3", st->solid_area * o->layer);
+  set_int(L, "dropped_short_vectors", st->dropped);
+  lua_newtable(L);
+  set_num(L, "classify", st->seconds[0]);
+  set_num(L, "templates", st->seconds[1]);
+  set_num(L, "layers", st->seconds[2]);
+  set_num(L, "write", s->t_write);
+  set_num(L, "total", st->seconds[3]);
+  lua_setfield(L, -2, "seconds");
+  set_num(L, "units", units);
+  /* peak resident memory from /proc */
+  FILE *f = fopen("/proc/self/status", "r");
+  if (f) {
+    char line[256];
+    while (fgets(line, sizeof line, f))
+      if (!strncmp(line, "VmHWM:", 6)) set_num(L, "peak_rss_mb", atof(line + 6) / 1024.0);
+    fclose(f);
+  }
+  const char *w = gr_job_warning(j);
+  if (w && *w) { lua_pushstring(L, w); lua_setfield(L, -2, "warning"); }
+}
+
+/* job:run{output=, format="ascii"|"binary", kb=dir|true|false, direct=,
+ *         first=, last=, keep={g...}, split=, quiet=} -> stats, kept layers */
+static int l_run(lua_State *L) {
+  gr_job *j = check_job(L, 1);
+  luaL_checktype(L, 2, LUA_TTABLE);
+  const char *out = gr_opt_string(L, 2, "output", NULL);
+  const char *format = gr_opt_string(L, 2, "format", "ascii");
+  if (strcmp(format, "ascii") && strcmp(format, "binary"))
+    return luaL_error(L, "bad option 'format' (ascii or binary, got '%s')", format);
+  int binary = !strcmp(format, "binary");
+  gr_job_run_opts r;
+  memset(&r, 0, sizeof r);
+  r.direct = gr_opt_boolean(L, 2, "direct", 0);
+  r.first = gr_opt_integer(L, 2, "first", 0);
+  r.last = gr_opt_integer(L, 2, "last", 0);
+  int split = gr_opt_boolean(L, 2, "split", 0);
+  progctx pc = {gr_opt_boolean(L, 2, "quiet", 1), gr_now(), 0};
+  r.progress = progress;
+  r.progress_ud = &pc;
+  /* knowledge base: a directory, true (the default directory) or false */
+  char kbdir[4096] = "";
+  lua_getfield(L, 2, "kb");
+  if (lua_type(L, -1) == LUA_TSTRING) snprintf(kbdir, sizeof kbdir, "%s", lua_tostring(L, -1));
+  else if (lua_toboolean(L, -1)) gr_kb_default_dir(kbdir, sizeof kbdir);
+  lua_pop(L, 1);
+  gr_err e;
+  gr_err_clear(&e);
+  sinkctx s;
+  memset(&s, 0, sizeof s);
+  const gr_job_opts *o = gr_job_options(j);
+  s.nlasers = o->nlasers;
+  s.split = split && o->nlasers > 1;
+  /* layers to keep for pictures */
+  lua_getfield(L, 2, "keep");
+  int nkeep = lua_istable(L, -1) ? (int)luaL_len(L, -1) : 0;
+  lua_pop(L, 1);
+  s.keep = calloc(nkeep + 1, sizeof *s.keep);
+  s.kept = calloc(nkeep + 1, sizeof *s.kept);
+  s.tmp = gr_layer_new(0);
+  if (!s.keep || !s.kept || !s.tmp) { free(s.keep); free(s.kept); gr_layer_free(s.tmp); return luaL_error(L, "out of memory"); }
+  lua_getfield(L, 2, "keep");
+  for (int i = 0; i < nkeep; i++) {
+    lua_geti(L, -1, i + 1);
+    s.keep[i] = (int)lua_tointeger(L, -1);
+    lua_pop(L, 1);
+  }
+  lua_pop(L, 1);
+  s.nkeep = nkeep;
+  /* writers */
+  gr_cli_header h = gr_cli_header_defaults();
+  h.binary = binary;
+  h.layers = r.last > 0 || r.first > 0 ? 0 : gr_job_layers(j);
+  int ga = r.first > 0 ? r.first : 1, gb = r.last > 0 && r.last < gr_job_layers(j) ? r.last : gr_job_layers(j);
+  h.layers = gb - ga + 1;
+  for (int a = 0; a < 3; a++) {
+    h.lo[a] = o->origin[a];
+    h.hi[a] = o->origin[a] + o->n[a] * o->cell;
+  }
+  int rc = GR_OK;
+  gr_kb *kb = NULL;
+  if (kbdir[0] && !r.direct) {
+    kb = gr_kb_open(kbdir, &e);
+    if (!kb) rc = e.code ? e.code : GR_EIO;
+  }
+  if (rc == GR_OK && out) {
+    s.w[0] = gr_cli_open(out, &h, &e);
+    if (!s.w[0]) rc = e.code ? e.code : GR_EIO;
+    for (int la = 0; s.split && rc == GR_OK && la < o->nlasers; la++) {
+      char path[4200];
+      size_t n = strlen(out);
+      if (n > 4 && !strcmp(out + n - 4, ".cli")) snprintf(path, sizeof path, "%.*s_laser%d.cli", (int)(n - 4), out, la + 1);
+      else snprintf(path, sizeof path, "%s_laser%d.cli", out, la + 1);
+      s.w[la + 1] = gr_cli_open(path, &h, &e);
+      if (!s.w[la + 1]) rc = e.code ? e.code : GR_EIO;
+    }
+  }
+  if (rc == GR_OK) {
+    r.kb = kb;
+    r.sink = sink;
+    r.sink_ud = &s;
+    rc = gr_job_run(j, &r, &e);
+  }
+  /* commit every writer only if everything went well; else remove temporaries */
+  for (int w = 0; w <= GR_MAX_LASERS; w++) {
+    if (!s.w[w]) continue;
+    gr_err e2;
+    gr_err_clear(&e2);
+    int crc = gr_cli_close(s.w[w], rc == GR_OK, &e2);
+    if (rc == GR_OK && crc) { rc = crc; e = e2; }
+  }
+  gr_kb_close(kb);
+  gr_layer_free(s.tmp);
+  if (rc) {
+    for (int i = 0; i < nkeep; i++) gr_layer_free(s.kept[i]);
+    free(s.kept);
+    free(s.keep);
+    return gr_lua_error(L, &e);
+  }
+  push_stats(L, j, &s, h.units);
+  lua_newtable(L);
+  for (int i = 0; i < nkeep; i++) {
+    if (!s.kept[i]) continue;
+    gr_push_layer(L, s.kept[i]);
+    lua_rawseti(L, -2, s.keep[i]);
+  }
+  free(s.kept);
+  free(s.keep);
+  return 2;
+}
+
+static int job_tostring(lua_State *L) {
+  gr_job *j = check_job(L, 1);
+  const gr_job_opts *o = gr_job_options(j);
+  lua_pushfstring(L, "job: %d x %d x %d voxels of %f mm, %d layers of %f mm", o->n[0], o->n[1], o->n[2], o->cell,
+                  gr_job_layers(j), o->layer);
+  return 1;
+}
+
+/* ---- knowledge base ---- */
+static const char *kb_dir_arg(lua_State *L, int idx, char *buf, size_t n) {
+  if (lua_isnoneornil(L, idx)) {
+    gr_kb_default_dir(buf, n);
+    return buf;
+  }
+  return luaL_checkstring(L, idx);
+}
+
+static int l_kb_default_dir(lua_State *L) {
+  char buf[4096];
+  gr_kb_default_dir(buf, sizeof buf);
+  lua_pushstring(L, buf);
+  return 1;
+}
+
+static const luaL_Reg job_methods[] = {
+    {"spec", l_spec},     {"voxel", l_voxel}, {"domain", l_domain}, {"machine", l_machine},
+    {"layers", l_layers}, {"run", l_run},     {NULL, NULL}};
+
+static void push_entry(lua_State *L, const char *key, const char *sig, size_t bytes, int qualified,
+                       const double *quality, long long created) {
+  lua_newtable(L);
+  lua_pushstring(L, key);
+  lua_setfield(L, -2, "key");
+  lua_pushstring(L, sig ? sig : "");
+  lua_setfield(L, -2, "signature");
+  set_int(L, "bytes", (long long)bytes);
+  lua_pushboolean(L, qualified);
+  lua_setfield(L, -2, "qualified");
+  set_int(L, "created", created);
+  lua_newtable(L);
+  static const char *const qn[4] = {"pore_max", "overmelt_max", "contour_dev_max", "layers_verified"};
+  for (int i = 0; i < 4; i++)
+    if (!isnan(quality[i])) set_num(L, qn[i], quality[i]);
+  lua_setfield(L, -2, "quality");
+}
+
+/* gradus.kb.list([dir]) -> array of {key, signature, bytes, qualified, created, quality} */
+static int l_kb_list(lua_State *L) {
+  char buf[4096];
+  const char *dir = kb_dir_arg(L, 1, buf, sizeof buf);
+  gr_err e;
+  gr_err_clear(&e);
+  gr_kb *kb = gr_kb_open(dir, &e);
+  if (!kb) return gr_lua_error(L, &e);
+  gr_kb_entry *v = NULL;
+  size_t n = 0;
+  char warn[512] = "";
+  int rc = gr_kb_list(kb, &v, &n, warn, sizeof warn, &e);
+  gr_kb_close(kb);
+  if (rc) return gr_lua_error(L, &e);
+  lua_createtable(L, (int)n, 0);
+  for (size_t i = 0; i < n; i++) {
+    push_entry(L, v[i].key, v[i].signature, v[i].bytes, v[i].qualified, v[i].quality, v[i].created);
+    lua_rawseti(L, -2, (lua_Integer)i + 1);
+  }
+  gr_kb_entries_free(v, n);
+  if (warn[0]) { lua_pushstring(L, warn); return 2; }
+  return 1;
+}
+
+/* gradus.kb.show(dir, key) -> table with the template's summary, or nil */
+static int l_kb_show(lua_State *L) {
+  char buf[4096];
+  const char *dir = kb_dir_arg(L, 1, buf, sizeof buf);
+  const char *key = luaL_checkstring(L, 2);
+  gr_err e;
+  gr_err_clear(&e);
+  gr_kb *kb = gr_kb_open(dir, &e);
+  if (!kb) return gr_lua_error(L, &e);
+  /* a key prefix is enough when unique */
+  gr_kb_entry *v = NULL;
+  size_t n = 0;
+  char full[65] = "";
+  if (gr_kb_list(kb, &v, &n, NULL, 0, &e) == GR_OK) {
+    int found = 0;
+    for (size_t i = 0; i < n; i++)
+      if (!strncmp(v[i].key, key, strlen(key))) { memcpy(full, v[i].key, 65); found++; }
+    if (found != 1) full[0] = 0;
+    gr_kb_entries_free(v, n);
+  }
+  gr_template *t = NULL;
+  char warn[512] = "";
+  int rc = full[0] ? gr_kb_get(kb, full, &t, warn, sizeof warn, &e) : GR_OK;
+  gr_kb_close(kb);
+  if (rc) return gr_lua_error(L, &e);
+  if (!t) { lua_pushnil(L); lua_pushstring(L, warn[0] ? warn : "no such template"); return 2; }
+  push_entry(L, t->key, t->signature, 0, t->qualified, t->quality, t->created);
+  set_int(L, "layers", t->nlayers);
+  size_t pts = 0, rings = 0, paths = 0;
+  for (int q = 0; q < t->nlayers; q++) {
+    for (int s = 0; s < t->nslots; s++) { rings += t->rings[q * t->nslots + s]->nrings; pts += t->rings[q * t->nslots + s]->npts; }
+    if (t->extra && t->extra[q]) paths += t->extra[q]->nb;
+  }
+  set_int(L, "rings", (long long)rings);
+  set_int(L, "points", (long long)pts);
+  set_int(L, "contour_pieces", (long long)paths);
+  if (t->meta) { lua_pushstring(L, t->meta); lua_setfield(L, -2, "meta"); }
+  gr_template_free(t);
+  return 1;
+}
+
+static void push_report(lua_State *L, const gr_kb_report *r) {
+  lua_newtable(L);
+  set_int(L, "ok", (long long)r->ok);
+  set_int(L, "corrupt", (long long)r->corrupt);
+  set_int(L, "orphans", (long long)r->orphans);
+  set_int(L, "removed", (long long)r->removed);
+  set_int(L, "index_entries", (long long)r->index_entries);
+  lua_pushboolean(L, r->index_ok);
+  lua_setfield(L, -2, "index_ok");
+  if (r->messages) { lua_pushstring(L, r->messages); lua_setfield(L, -2, "messages"); }
+}
+
+static int l_kb_verify(lua_State *L) {
+  char buf[4096];
+  const char *dir = kb_dir_arg(L, 1, buf, sizeof buf);
+  gr_err e;
+  gr_err_clear(&e);
+  gr_kb *kb = gr_kb_open(dir, &e);
+  if (!kb) return gr_lua_error(L, &e);
+  gr_kb_report r;
+  memset(&r, 0, sizeof r);
+  int rc = gr_kb_verify(kb, &r, &e);
+  gr_kb_close(kb);
+  if (rc) { gr_kb_report_clear(&r); return gr_lua_error(L, &e); }
+  push_report(L, &r);
+  gr_kb_report_clear(&r);
+  return 1;
+}
+
+/* gradus.kb.prune([dir [, {older_than = unix seconds}]]) */
+static int l_kb_prune(lua_State *L) {
+  char buf[4096];
+  const char *dir = kb_dir_arg(L, 1, buf, sizeof buf);
+  gr_kb_prune_opts po;
+  memset(&po, 0, sizeof po);
+  po.older_than = (long long)gr_opt_number(L, 2, "older_than", 0);
+  gr_err e;
+  gr_err_clear(&e);
+  gr_kb *kb = gr_kb_open(dir, &e);
+  if (!kb) return gr_lua_error(L, &e);
+  gr_kb_report r;
+  memset(&r, 0, sizeof r);
+  int rc = gr_kb_prune(kb, &po, &r, &e);
+  gr_kb_close(kb);
+  if (rc) { gr_kb_report_clear(&r); return gr_lua_error(L, &e); }
+  push_report(L, &r);
+  gr_kb_report_clear(&r);
+  return 1;
+}
+
+static const luaL_Reg place_fns[] = {{"job", l_job}, {NULL, NULL}};
+static const luaL_Reg kb_fns[] = {{"list", l_kb_list},       {"show", l_kb_show},
+                                  {"verify", l_kb_verify},   {"prune", l_kb_prune},
+                                  {"default_dir", l_kb_default_dir}, {NULL, NULL}};
 
 int gr_open_place(lua_State *L) {
-  (void)L;
+  luaL_newmetatable(L, JOB_MT);
+  lua_pushcfunction(L, job_gc);
+  lua_setfield(L, -2, "__gc");
+  lua_pushcfunction(L, job_gc);
+  lua_setfield(L, -2, "__close");
+  lua_pushcfunction(L, job_tostring);
+  lua_setfield(L, -2, "__tostring");
+  luaL_newlib(L, job_methods);
+  lua_setfield(L, -2, "__index");
+  lua_pop(L, 1);
+  luaL_newlib(L, place_fns);
+  lua_setfield(L, -2, "place");
+  luaL_newlib(L, kb_fns);
+  lua_setfield(L, -2, "kb");
   return 0;
 }

@@ -13,12 +13,16 @@ typedef struct gr_slice_opts {
   double cell;         /* marching-squares cell size, mm (> 0) */
   int refine;          /* 1: refine each edge crossing on the true field */
   double tol;          /* crossing tolerance, mm (default 1e-6) */
+  double chord_tol;    /* > 0: insert refined midpoints where a chord is more
+                          than chord_tol (mm) from the true zero set; 0 = off */
 } gr_slice_opts;
 gr_slice_opts gr_slice_defaults(void);
 
 /* Eq. (7) of the paper, L <= n*d/2: the grid cell may be at most d/2 for
  * hatch spacing d. Returns that bound, mm. */
 double gr_slice_max_cell(double hatch);
+/* GR_OK if cell <= hatch/2 (eq. 7), else GR_EARG with the reason. */
+int gr_slice_check_res(double cell, double hatch, gr_err *e);
 
 /* Section {f < 0} of the plane z: closed, non-crossing rings, nested and
  * oriented (outer CCW, holes CW). Parts of the section touching the window
@@ -27,15 +31,28 @@ int gr_slice_field(const gr_field *f, double z, const gr_slice_opts *o,
                    gr_rings *out, gr_err *e);
 
 /* Mesh/plane intersection (the paper's Fig. 12 route): closed loops go to
- * `closed`, open polylines (the mesh boundary) to `open` as GR_OPEN blocks. */
+ * `closed`, open polylines (the mesh boundary) to `open` as GR_OPEN blocks
+ * (either may be NULL). Loops are oriented with the inside (the side the
+ * normals point away from) on the left. */
 int gr_slice_mesh(const gr_mesh *m, double z, gr_rings *closed,
                   gr_layer *open, gr_err *e);
 
 /* Inward in-plane offset of the region bounded by `in` by distance b >= 0
  * (mm): every point of the result lies at distance b from the boundary of
  * `in`, inside it. cell is the grid cell of the 2-D distance field (mm).
- * Components narrower than 2b vanish. `out` is cleared first. */
+ * Components narrower than 2b vanish. `out` is cleared first. Crossings are
+ * refined on the exact polygon distance to 1e-6 mm. */
 int gr_offset_rings(const gr_rings *in, double b, double cell, gr_rings *out,
                     gr_err *e);
+/* The same with the crossing tolerance tol (mm, > 0) and the chord option
+ * chord_tol (mm, 0 = off) of gr_slice_opts. */
+int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
+                        double chord_tol, gr_rings *out, gr_err *e);
+
+/* Largest in-plane distance from a point of the region to its boundary
+ * (the inradius of the widest component), sampled on a grid of `cell` mm,
+ * so exact to within about cell. A region with value < b is a thin wall for
+ * beam offset b (its offset by b is empty). Returns -1 on error (e filled). */
+double gr_rings_max_inner_distance(const gr_rings *in, double cell, gr_err *e);
 
 #endif

@@ -237,6 +237,8 @@ function gradus.progress(label, done, total)
   if done >= total then io.stderr:write("\n") end
 end
 
+gradus.svg = require "gradus.svg"
+
 --- gradus.help(x): help text of a function, table or object of the module
 -- (from doc/api/*.md).
 function gradus.help(x)

@@ -1,0 +1,319 @@
+/* cli.c: CLI 2.0 writer and reader, see cli.h. */
+#include "cli.h"
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+gr_cli_header gr_cli_header_defaults(void) {
+  gr_cli_header h;
+  memset(&h, 0, sizeof h);
+  h.units = 0.001;
+  h.nlasers = 1;
+  return h;
+}
+
+struct gr_cli_writer {
+  gr_atomic a;
+  gr_cli_header h;
+  char *buf;      /* output buffer */
+  size_t n, cap;
+  int layers_written;
+};
+
+static const char *const KIND[GR_NKINDS] = {"contour", "hatch", "edge"};
+
+static int flush_buf(gr_cli_writer *w, gr_err *e) {
+  if (w->n && fwrite(w->buf, 1, w->n, w->a.fp) != w->n)
+    return gr_fail(e, GR_EIO, "cannot write %s: %s", w->a.path, strerror(errno));
+  w->n = 0;
+  return GR_OK;
+}
+
+static int reserve(gr_cli_writer *w, size_t k, gr_err *e) {
+  if (w->n + k <= w->cap) return GR_OK;
+  if (flush_buf(w, e)) return e->code;
+  if (k > w->cap) {
+    char *nb = realloc(w->buf, k);
+    if (!nb) return gr_fail(e, GR_EMEM, "out of memory");
+    w->buf = nb;
+    w->cap = k;
+  }
+  return GR_OK;
+}
+
+static int put(gr_cli_writer *w, const void *p, size_t k, gr_err *e) {
+  if (reserve(w, k, e)) return e->code;
+  memcpy(w->buf + w->n, p, k);
+  w->n += k;
+  return GR_OK;
+}
+
+static int putf(gr_cli_writer *w, gr_err *e, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+#include <stdarg.h>
+static int putf(gr_cli_writer *w, gr_err *e, const char *fmt, ...) {
+  if (reserve(w, 512, e)) return e->code;
+  va_list ap;
+  va_start(ap, fmt);
+  int k = vsnprintf(w->buf + w->n, w->cap - w->n, fmt, ap);
+  va_end(ap);
+  if (k < 0 || (size_t)k >= w->cap - w->n) return gr_fail(e, GR_EARG, "CLI line too long");
+  w->n += (size_t)k;
+  return GR_OK;
+}
+
+gr_cli_writer *gr_cli_open(const char *path, const gr_cli_header *h, gr_err *e) {
+  if (!(h->units > 0)) return gr_fail(e, GR_EARG, "CLI units must be > 0 mm, got %g", h->units), NULL;
+  gr_cli_writer *w = calloc(1, sizeof *w);
+  if (!w) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
+  w->h = *h;
+  w->cap = 1 << 20;
+  w->buf = malloc(w->cap);
+  if (!w->buf) { free(w); return gr_fail(e, GR_EMEM, "out of memory"), NULL; }
+  if (gr_atomic_open(&w->a, path, e)) { free(w->buf); free(w); return NULL; }
+  time_t now = time(NULL);
+  struct tm tm;
+  gmtime_r(&now, &tm);
+  int rc = putf(w, e, "$$HEADERSTART\n%s\n$$UNITS/%.9g\n$$VERSION/200\n", h->binary ? "$$BINARY" : "$$ASCII", h->units);
+  for (int l = 0; l < (h->nlasers > 0 ? h->nlasers : 1) && !rc; l++)
+    for (int k = 0; k < GR_NKINDS && !rc; k++) rc = putf(w, e, "$$LABEL/%d,laser%d-%s\n", l * 3 + k + 1, l + 1, KIND[k]);
+  if (!rc)
+    rc = putf(w, e, "$$DATE/%02d%02d%02d\n$$DIMENSION/%.6f,%.6f,%.6f,%.6f,%.6f,%.6f\n$$LAYERS/%d\n$$HEADEREND",
+              tm.tm_mday, tm.tm_mon + 1, tm.tm_year % 100, h->lo[0], h->lo[1], h->lo[2], h->hi[0], h->hi[1], h->hi[2],
+              h->layers);
+  if (!rc && !h->binary) rc = putf(w, e, "\n$$GEOMETRYSTART\n");
+  if (rc) { gr_cli_close(w, 0, NULL); return NULL; }
+  return w;
+}
+
+static void put_u16(unsigned char *p, unsigned v) { p[0] = v & 255; p[1] = (v >> 8) & 255; }
+static void put_i32(unsigned char *p, int32_t v) { uint32_t u = (uint32_t)v; for (int i = 0; i < 4; i++) p[i] = (u >> (8 * i)) & 255; }
+static void put_f32(unsigned char *p, double v) { float f = (float)v; uint32_t u; memcpy(&u, &f, 4); for (int i = 0; i < 4; i++) p[i] = (u >> (8 * i)) & 255; }
+
+int gr_cli_write_layer(gr_cli_writer *w, const gr_layer *l, gr_err *e) {
+  double u = w->h.units;
+  if (w->h.binary) {
+    unsigned char hd[16];
+    put_u16(hd, 127);
+    put_f32(hd + 2, l->z / u);
+    if (put(w, hd, 6, e)) return e->code;
+    for (size_t b = 0; b < l->nb; b++) {
+      const gr_block *bk = &l->b[b];
+      const double *p = l->xy + 2 * bk->start;
+      int id = bk->laser * 3 + bk->kind + 1;
+      if (bk->shape == GR_SEGMENTS) {
+        size_t ns = bk->n / 2;
+        if (reserve(w, 10 + 16 * ns, e)) return e->code;
+        unsigned char *o = (unsigned char *)w->buf + w->n;
+        put_u16(o, 132);
+        put_i32(o + 2, id);
+        put_i32(o + 6, (int32_t)ns);
+        for (size_t q = 0; q < 2 * ns; q++) {
+          put_f32(o + 10 + 8 * q, p[2 * q] / u);
+          put_f32(o + 14 + 8 * q, p[2 * q + 1] / u);
+        }
+        w->n += 10 + 16 * ns;
+      } else {
+        if (reserve(w, 14 + 8 * bk->n, e)) return e->code;
+        unsigned char *o = (unsigned char *)w->buf + w->n;
+        put_u16(o, 130);
+        put_i32(o + 2, id);
+        put_i32(o + 6, bk->shape == GR_OPEN ? 2 : bk->dir);
+        put_i32(o + 10, (int32_t)bk->n);
+        for (size_t q = 0; q < bk->n; q++) {
+          put_f32(o + 14 + 8 * q, p[2 * q] / u);
+          put_f32(o + 18 + 8 * q, p[2 * q + 1] / u);
+        }
+        w->n += 14 + 8 * bk->n;
+      }
+    }
+  } else {
+    if (putf(w, e, "$$LAYER/%.6f\n", l->z / u)) return e->code;
+    for (size_t b = 0; b < l->nb; b++) {
+      const gr_block *bk = &l->b[b];
+      const double *p = l->xy + 2 * bk->start;
+      int id = bk->laser * 3 + bk->kind + 1;
+      if (bk->shape == GR_SEGMENTS) {
+        if (putf(w, e, "$$HATCHES/%d,%zu", id, bk->n / 2)) return e->code;
+      } else {
+        if (putf(w, e, "$$POLYLINE/%d,%d,%zu", id, bk->shape == GR_OPEN ? 2 : bk->dir, bk->n)) return e->code;
+      }
+      for (size_t q = 0; q < bk->n; q++)
+        if (putf(w, e, ",%.4f,%.4f", p[2 * q] / u, p[2 * q + 1] / u)) return e->code;
+      if (put(w, "\n", 1, e)) return e->code;
+    }
+  }
+  w->layers_written++;
+  return GR_OK;
+}
+
+int gr_cli_close(gr_cli_writer *w, int commit, gr_err *e) {
+  if (!w) return GR_OK;
+  int rc = GR_OK;
+  if (commit) {
+    if (!w->h.binary) rc = putf(w, e, "$$GEOMETRYEND\n");
+    if (!rc) rc = flush_buf(w, e);
+    if (!rc) rc = gr_atomic_commit(&w->a, e);
+    else gr_atomic_abort(&w->a);
+  } else {
+    gr_atomic_abort(&w->a);
+  }
+  free(w->buf);
+  free(w);
+  return rc;
+}
+
+/* ---- reader ---- */
+static int layer_block(gr_layer *l, int shape, int id, int dir, const double *xy, size_t n) {
+  int kind = (id - 1) % 3, laser = (id - 1) / 3;
+  if (id < 1) kind = GR_EDGE, laser = 0;
+  return gr_layer_add(l, shape, kind, laser, dir, xy, n);
+}
+
+static int read_ascii(const char *path, const char *t, size_t len, size_t pos, gr_cli_header *h,
+                      gr_cli_layer_fn fn, void *ud, gr_err *e) {
+  gr_layer *l = gr_layer_new(0);
+  double *xy = NULL;
+  size_t cap = 0;
+  int line = 1, have = 0, rc = GR_OK;
+  for (size_t i = 0; i < pos; i++) if (t[i] == '\n') line++;
+  while (pos < len && rc == GR_OK) {
+    size_t end = pos;
+    while (end < len && t[end] != '\n') end++;
+    const char *s = t + pos;
+    size_t n = end - pos;
+    if (n >= 8 && !strncmp(s, "$$LAYER/", 8)) {
+      if (have) rc = fn(ud, l, e);
+      gr_layer_clear(l, strtod(s + 8, NULL) * h->units);
+      have = 1;
+    } else if ((n >= 11 && !strncmp(s, "$$POLYLINE/", 11)) || (n >= 10 && !strncmp(s, "$$HATCHES/", 10))) {
+      int poly = s[2] == 'P';
+      const char *c = s + (poly ? 11 : 10);
+      char *q;
+      long id = strtol(c, &q, 10), dir = 0;
+      if (q == c || *q != ',') { rc = gr_fail(e, GR_EPARSE, "%s:%d: bad id", path, line); break; }
+      if (poly) { c = q + 1; dir = strtol(c, &q, 10); if (q == c || *q != ',') { rc = gr_fail(e, GR_EPARSE, "%s:%d: bad direction", path, line); break; } }
+      c = q + 1;
+      long cnt = strtol(c, &q, 10);
+      if (q == c || cnt < 0) { rc = gr_fail(e, GR_EPARSE, "%s:%d: bad count", path, line); break; }
+      size_t npts = poly ? (size_t)cnt : 2 * (size_t)cnt;
+      if (gr_grow(&xy, &cap, npts + 1, 2 * sizeof(double))) { rc = gr_fail(e, GR_EMEM, "out of memory"); break; }
+      for (size_t k = 0; k < 2 * npts; k++) {
+        if (*q != ',') { rc = gr_fail(e, GR_EPARSE, "%s:%d: %zu coordinates expected, found %zu", path, line, 2 * npts, k); break; }
+        c = q + 1;
+        xy[k] = strtod(c, &q) * h->units;
+        if (q == c) { rc = gr_fail(e, GR_EPARSE, "%s:%d: bad number at coordinate %zu", path, line, k + 1); break; }
+      }
+      if (rc) break;
+      if (q < t + end && *q == ',') { rc = gr_fail(e, GR_EPARSE, "%s:%d: more coordinates than the count %ld", path, line, cnt); break; }
+      if (!have) { rc = gr_fail(e, GR_EPARSE, "%s:%d: geometry before the first $$LAYER", path, line); break; }
+      if (layer_block(l, poly ? (dir == 2 ? GR_OPEN : GR_CLOSED) : GR_SEGMENTS, (int)id, (int)dir, xy, npts))
+        rc = gr_fail(e, GR_EMEM, "out of memory");
+    } else if (n >= 13 && !strncmp(s, "$$GEOMETRYEND", 13)) {
+      break;
+    } else if (n > 0 && strncmp(s, "$$", 2) && strspn(s, " \t\r") != n) {
+      rc = gr_fail(e, GR_EPARSE, "%s:%d: unknown line '%.40s'", path, line, s);
+    }
+    pos = end + 1;
+    line++;
+  }
+  if (rc == GR_OK && have) rc = fn(ud, l, e);
+  free(xy);
+  gr_layer_free(l);
+  return rc;
+}
+
+static unsigned rd_u16(const unsigned char *p) { return p[0] | (p[1] << 8); }
+static int32_t rd_i32(const unsigned char *p) { return (int32_t)((uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24)); }
+static double rd_f32(const unsigned char *p) { uint32_t u = (uint32_t)rd_i32(p); float f; memcpy(&f, &u, 4); return f; }
+
+static int read_binary(const char *path, const unsigned char *t, size_t len, size_t pos, gr_cli_header *h,
+                       gr_cli_layer_fn fn, void *ud, gr_err *e) {
+  gr_layer *l = gr_layer_new(0);
+  double *xy = NULL;
+  size_t cap = 0;
+  int have = 0, rc = GR_OK;
+  while (pos < len && rc == GR_OK) {
+    if (len - pos < 2) { rc = gr_fail(e, GR_EPARSE, "%s: byte %zu: truncated command", path, pos); break; }
+    unsigned cmd = rd_u16(t + pos);
+    size_t at = pos;
+    pos += 2;
+    if (cmd == 127) {
+      if (len - pos < 4) { rc = gr_fail(e, GR_EPARSE, "%s: byte %zu: truncated layer", path, at); break; }
+      if (have) rc = fn(ud, l, e);
+      gr_layer_clear(l, rd_f32(t + pos) * h->units);
+      have = 1;
+      pos += 4;
+    } else if (cmd == 130 || cmd == 132) {
+      int poly = cmd == 130;
+      size_t hd = poly ? 12 : 8;
+      if (len - pos < hd) { rc = gr_fail(e, GR_EPARSE, "%s: byte %zu: truncated %s", path, at, poly ? "polyline" : "hatches"); break; }
+      int id = rd_i32(t + pos), dir = poly ? rd_i32(t + pos + 4) : 0;
+      int32_t cnt = rd_i32(t + pos + (poly ? 8 : 4));
+      pos += hd;
+      size_t npts = poly ? (size_t)cnt : 2 * (size_t)cnt;
+      if (cnt < 0 || (len - pos) / 8 < npts) { rc = gr_fail(e, GR_EPARSE, "%s: byte %zu: %s of %d points runs past the end of the file", path, at, poly ? "polyline" : "hatches", cnt); break; }
+      if (!have) { rc = gr_fail(e, GR_EPARSE, "%s: byte %zu: geometry before the first layer", path, at); break; }
+      if (gr_grow(&xy, &cap, npts + 1, 2 * sizeof(double))) { rc = gr_fail(e, GR_EMEM, "out of memory"); break; }
+      for (size_t k = 0; k < 2 * npts; k++) xy[k] = rd_f32(t + pos + 4 * k) * h->units;
+      pos += 8 * npts;
+      if (layer_block(l, poly ? (dir == 2 ? GR_OPEN : GR_CLOSED) : GR_SEGMENTS, id, dir, xy, npts))
+        rc = gr_fail(e, GR_EMEM, "out of memory");
+    } else {
+      rc = gr_fail(e, GR_EPARSE, "%s: byte %zu: unknown command %u", path, at, cmd);
+    }
+  }
+  if (rc == GR_OK && have) rc = fn(ud, l, e);
+  free(xy);
+  gr_layer_free(l);
+  return rc;
+}
+
+int gr_cli_read(const char *path, gr_cli_header *h, gr_cli_layer_fn fn, void *ud, gr_err *e) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return gr_fail(e, GR_EIO, "cannot read %s: %s", path, strerror(errno));
+  fseek(f, 0, SEEK_END);
+  long sz = ftell(f);
+  fseek(f, 0, SEEK_SET);
+  char *t = malloc(sz > 0 ? (size_t)sz + 1 : 1);
+  if (!t) { fclose(f); return gr_fail(e, GR_EMEM, "out of memory reading %s", path); }
+  size_t len = fread(t, 1, sz > 0 ? (size_t)sz : 0, f);
+  fclose(f);
+  t[len] = 0;
+  *h = gr_cli_header_defaults();
+  h->layers = -1;
+  const char *he = NULL;
+  for (size_t i = 0; i + 13 <= len; i++)
+    if (!memcmp(t + i, "$$HEADEREND", 11)) { he = t + i; break; }
+  if (len < 14 || memcmp(t, "$$HEADERSTART", 13) || !he) {
+    free(t);
+    return gr_fail(e, GR_EPARSE, "%s:1: not a CLI file (no $$HEADERSTART ... $$HEADEREND)", path);
+  }
+  int binary = 0, line = 1;
+  for (const char *c = t; c < he; c++) {
+    if (*c == '\n') { line++; continue; }
+    if (c != t && c[-1] != '\n') continue;
+    if (!strncmp(c, "$$BINARY", 8)) binary = 1;
+    else if (!strncmp(c, "$$UNITS/", 8)) {
+      h->units = strtod(c + 8, NULL);
+      if (!(h->units > 0)) { free(t); return gr_fail(e, GR_EPARSE, "%s:%d: bad $$UNITS", path, line); }
+    } else if (!strncmp(c, "$$LAYERS/", 9)) h->layers = atoi(c + 9);
+    else if (!strncmp(c, "$$DIMENSION/", 12))
+      sscanf(c + 12, "%lf,%lf,%lf,%lf,%lf,%lf", &h->lo[0], &h->lo[1], &h->lo[2], &h->hi[0], &h->hi[1], &h->hi[2]);
+  }
+  h->binary = binary;
+  size_t pos = (size_t)(he - t) + 11;
+  int rc;
+  if (binary) {
+    rc = read_binary(path, (const unsigned char *)t, len, pos, h, fn, ud, e);
+  } else {
+    const char *g = strstr(he, "$$GEOMETRYSTART");
+    if (!g) { free(t); return gr_fail(e, GR_EPARSE, "%s: no $$GEOMETRYSTART", path); }
+    pos = (size_t)(g - t);
+    while (pos < len && t[pos] != '\n') pos++;
+    rc = read_ascii(path, t, len, pos + 1, h, fn, ud, e);
+  }
+  free(t);
+  return rc;
+}

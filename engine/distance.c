@@ -1,0 +1,490 @@
+/* distance.c: BVH closest points and graded offset fields, see distance.h. */
+#include "distance.h"
+#include <math.h>
+#include <stdlib.h>
+#include <stdio.h>
+#include <string.h>
+#include "expr.h"
+#include "mc.h"
+
+/* ---- BVH ---- */
+typedef struct bnode {
+  double lo[3], hi[3];
+  int left;   /* child index, or -1 for a leaf */
+  int right;
+  int first, count; /* leaf: triangles tri[first .. first+count) */
+} bnode;
+
+struct gr_bvh {
+  const gr_mesh *m;
+  bnode *node;
+  int nnode;
+  uint32_t *tri;   /* triangle order */
+  double *cen;     /* centroids 3*nf */
+};
+
+static void tri_box(const gr_mesh *m, uint32_t t, double lo[3], double hi[3]) {
+  for (int a = 0; a < 3; a++) { lo[a] = INFINITY; hi[a] = -INFINITY; }
+  for (int k = 0; k < 3; k++) {
+    const double *v = m->v + 3 * m->f[3 * t + k];
+    for (int a = 0; a < 3; a++) { lo[a] = fmin(lo[a], v[a]); hi[a] = fmax(hi[a], v[a]); }
+  }
+}
+
+static int build(gr_bvh *b, int first, int count) {
+  int id = b->nnode++;
+  bnode *n = &b->node[id];
+  for (int a = 0; a < 3; a++) { n->lo[a] = INFINITY; n->hi[a] = -INFINITY; }
+  double clo[3] = {INFINITY, INFINITY, INFINITY}, chi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (int i = first; i < first + count; i++) {
+    double lo[3], hi[3];
+    tri_box(b->m, b->tri[i], lo, hi);
+    for (int a = 0; a < 3; a++) {
+      n->lo[a] = fmin(n->lo[a], lo[a]);
+      n->hi[a] = fmax(n->hi[a], hi[a]);
+      double c = b->cen[3 * b->tri[i] + a];
+      clo[a] = fmin(clo[a], c);
+      chi[a] = fmax(chi[a], c);
+    }
+  }
+  if (count <= 4) {
+    n->left = n->right = -1;
+    n->first = first;
+    n->count = count;
+    return id;
+  }
+  int ax = 0;
+  for (int a = 1; a < 3; a++) if (chi[a] - clo[a] > chi[ax] - clo[ax]) ax = a;
+  double mid = 0.5 * (clo[ax] + chi[ax]);
+  int i = first, j = first + count - 1;
+  while (i <= j) {
+    if (b->cen[3 * b->tri[i] + ax] < mid) i++;
+    else { uint32_t t = b->tri[i]; b->tri[i] = b->tri[j]; b->tri[j] = t; j--; }
+  }
+  int nl = i - first;
+  if (nl == 0 || nl == count) nl = count / 2; /* all centroids equal along ax */
+  int l = build(b, first, nl);
+  int r = build(b, first + nl, count - nl);
+  n = &b->node[id];
+  n->left = l;
+  n->right = r;
+  n->first = n->count = 0;
+  return id;
+}
+
+gr_bvh *gr_bvh_new(const gr_mesh *m, gr_err *e) {
+  if (!m || m->nf == 0) return gr_fail(e, GR_EARG, "distance: the mesh is empty"), NULL;
+  for (size_t i = 0; i < 3 * m->nv; i++)
+    if (!isfinite(m->v[i])) return gr_fail(e, GR_EGEOM, "distance: mesh vertex %zu is not finite", i / 3), NULL;
+  for (size_t i = 0; i < 3 * m->nf; i++)
+    if (m->f[i] >= m->nv) return gr_fail(e, GR_EGEOM, "distance: face %zu refers to missing vertex %u", i / 3, m->f[i]), NULL;
+  gr_bvh *b = calloc(1, sizeof *b);
+  if (!b) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
+  b->m = m;
+  b->node = malloc(2 * m->nf * sizeof *b->node);
+  b->tri = malloc(m->nf * sizeof *b->tri);
+  b->cen = malloc(3 * m->nf * sizeof *b->cen);
+  if (!b->node || !b->tri || !b->cen) { gr_bvh_free(b); return gr_fail(e, GR_EMEM, "out of memory for BVH"), NULL; }
+  for (size_t t = 0; t < m->nf; t++) {
+    b->tri[t] = (uint32_t)t;
+    for (int a = 0; a < 3; a++)
+      b->cen[3 * t + a] = (m->v[3 * m->f[3 * t] + a] + m->v[3 * m->f[3 * t + 1] + a] + m->v[3 * m->f[3 * t + 2] + a]) / 3;
+  }
+  build(b, 0, (int)m->nf);
+  return b;
+}
+
+void gr_bvh_free(gr_bvh *b) {
+  if (!b) return;
+  free(b->node);
+  free(b->tri);
+  free(b->cen);
+  free(b);
+}
+
+static double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+/* Closest point on a triangle by its Voronoi regions (vertex, edge, face). */
+void gr_closest_on_triangle(const double p[3], const double a[3], const double b[3],
+                            const double c[3], double q[3]) {
+  double ab[3], ac[3], ap[3];
+  for (int i = 0; i < 3; i++) { ab[i] = b[i] - a[i]; ac[i] = c[i] - a[i]; ap[i] = p[i] - a[i]; }
+  double d1 = dot3(ab, ap), d2 = dot3(ac, ap);
+  if (d1 <= 0 && d2 <= 0) { memcpy(q, a, 3 * sizeof *q); return; }
+  double bp[3];
+  for (int i = 0; i < 3; i++) bp[i] = p[i] - b[i];
+  double d3 = dot3(ab, bp), d4 = dot3(ac, bp);
+  if (d3 >= 0 && d4 <= d3) { memcpy(q, b, 3 * sizeof *q); return; }
+  double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    double v = d1 / (d1 - d3);
+    for (int i = 0; i < 3; i++) q[i] = a[i] + v * ab[i];
+    return;
+  }
+  double cp[3];
+  for (int i = 0; i < 3; i++) cp[i] = p[i] - c[i];
+  double d5 = dot3(ab, cp), d6 = dot3(ac, cp);
+  if (d6 >= 0 && d5 <= d6) { memcpy(q, c, 3 * sizeof *q); return; }
+  double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    double w = d2 / (d2 - d6);
+    for (int i = 0; i < 3; i++) q[i] = a[i] + w * ac[i];
+    return;
+  }
+  double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    for (int i = 0; i < 3; i++) q[i] = b[i] + w * (c[i] - b[i]);
+    return;
+  }
+  double den = va + vb + vc;
+  if (!(fabs(den) > 0)) { memcpy(q, a, 3 * sizeof *q); return; } /* degenerate */
+  double v = vb / den, w = vc / den;
+  for (int i = 0; i < 3; i++) q[i] = a[i] + ab[i] * v + ac[i] * w;
+}
+
+static double box_d2(const bnode *n, const double p[3]) {
+  double s = 0;
+  for (int a = 0; a < 3; a++) {
+    double d = p[a] < n->lo[a] ? n->lo[a] - p[a] : (p[a] > n->hi[a] ? p[a] - n->hi[a] : 0);
+    s += d * d;
+  }
+  return s;
+}
+
+int gr_bvh_closest(const gr_bvh *b, const double p[3], double maxdist, gr_hit *h) {
+  double best = isfinite(maxdist) ? maxdist * maxdist : INFINITY;
+  h->tri = -1;
+  h->dist = INFINITY;
+  int stack[128], sp = 0;
+  stack[sp++] = 0;
+  const gr_mesh *m = b->m;
+  while (sp) {
+    const bnode *n = &b->node[stack[--sp]];
+    if (box_d2(n, p) > best) continue;
+    if (n->left < 0) {
+      for (int i = n->first; i < n->first + n->count; i++) {
+        uint32_t t = b->tri[i];
+        double q[3];
+        gr_closest_on_triangle(p, m->v + 3 * m->f[3 * t], m->v + 3 * m->f[3 * t + 1], m->v + 3 * m->f[3 * t + 2], q);
+        double d2 = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]);
+        if (d2 <= best) {
+          best = d2;
+          h->tri = t;
+          memcpy(h->q, q, sizeof h->q);
+        }
+      }
+      continue;
+    }
+    double dl = box_d2(&b->node[n->left], p), dr = box_d2(&b->node[n->right], p);
+    if (sp + 2 > 128) continue; /* cannot happen for balanced trees of < 2^60 triangles */
+    if (dl < dr) { stack[sp++] = n->right; stack[sp++] = n->left; }
+    else { stack[sp++] = n->left; stack[sp++] = n->right; }
+  }
+  if (h->tri >= 0) h->dist = sqrt(best);
+  return GR_OK;
+}
+
+/* ---- offset field ---- */
+gr_offset_opts gr_offset_defaults(void) {
+  gr_offset_opts o;
+  memset(&o, 0, sizeof o);
+  o.cell = 2;
+  o.res = 40;
+  o.thickness = 0.1;
+  o.kind = GR_OFFSET_SHEET;
+  o.side = -1;
+  o.mode = GR_DIST_EXACT;
+  return o;
+}
+
+typedef struct offset {
+  gr_field *phi;
+  gr_mesh *own;       /* H when meshed here */
+  const gr_mesh *h;
+  gr_bvh *bvh;
+  gr_expr *t, *tin;
+  double tconst;
+  double L, o[3];
+  double maxt;        /* max T over H's vertices (with a 20 % reserve) */
+  double lip;         /* Lipschitz bound of phi */
+  int kind, side, mode;
+  double tnear;       /* typical T, centre of the refinement band */
+  double refine_band; /* refine q where | d - tnear | < this */
+  long npts, nquery, nrefine, ncalls; /* statistics (GRADUS_DEBUG) */
+} offset;
+
+static void offset_free(void *ud) {
+  offset *f = ud;
+  if (!f) return;
+  if (getenv("GRADUS_DEBUG"))
+    fprintf(stderr, "offset field: %ld calls, %ld points, %ld BVH queries, %ld refinements\n", f->ncalls, f->npts, f->nquery, f->nrefine);
+  gr_field_free(f->phi);
+  gr_mesh_free(f->own);
+  gr_bvh_free(f->bvh);
+  gr_expr_free(f->t);
+  gr_expr_free(f->tin);
+  free(f);
+}
+
+/* T at n points q (global, mm). */
+static int thick(const offset *f, const gr_expr *x, size_t n, const double *qx, const double *qy,
+                 const double *qz, double *out, gr_err *e) {
+  if (!x) {
+    for (size_t i = 0; i < n; i++) out[i] = f->tconst;
+    return GR_OK;
+  }
+  double u[256], v[256], w[256];
+  for (size_t s = 0; s < n; s += 256) {
+    size_t m = n - s < 256 ? n - s : 256;
+    for (size_t i = 0; i < m; i++) {
+      double a = fmod(qx[s + i] - f->o[0], f->L), b = fmod(qy[s + i] - f->o[1], f->L), c = fmod(qz[s + i] - f->o[2], f->L);
+      if (a < 0) a += f->L;
+      if (b < 0) b += f->L;
+      if (c < 0) c += f->L;
+      u[i] = 2 * a / f->L - 1;
+      v[i] = 2 * b / f->L - 1;
+      w[i] = 2 * c / f->L - 1;
+    }
+    const double *vars[6] = {qx + s, qy + s, qz + s, u, v, w};
+    int rc = gr_expr_eval(x, m, vars, out + s, e);
+    if (rc) return rc;
+  }
+  return GR_OK;
+}
+
+/* Refine q onto phi = 0 as the closest point to p: alternate a Newton
+ * projection onto the surface with a move to the foot of p on the tangent
+ * plane. Keeps the mesh point when it does not converge. */
+static void exact_refine(const offset *f, const double p[3], double q[3]) {
+  double x[3] = {q[0], q[1], q[2]};
+  for (int it = 0; it < 12; it++) {
+    double v, gx, gy, gz;
+    gr_err e;
+    for (int k = 0; k < 3; k++) {
+      if (gr_field_eval(f->phi, 1, &x[0], &x[1], &x[2], &v, &e) ||
+          gr_field_grad(f->phi, 1, &x[0], &x[1], &x[2], &gx, &gy, &gz, &e))
+        return;
+      double g2 = gx * gx + gy * gy + gz * gz;
+      if (!(g2 > 1e-300)) return;
+      x[0] -= v * gx / g2;
+      x[1] -= v * gy / g2;
+      x[2] -= v * gz / g2;
+      if (fabs(v) < 1e-14) break;
+    }
+    if (gr_field_grad(f->phi, 1, &x[0], &x[1], &x[2], &gx, &gy, &gz, &e)) return;
+    double gn = sqrt(gx * gx + gy * gy + gz * gz);
+    if (!(gn > 0)) return;
+    double n[3] = {gx / gn, gy / gn, gz / gn};
+    double r[3] = {p[0] - x[0], p[1] - x[1], p[2] - x[2]};
+    double rn = dot3(r, n);
+    double t[3] = {r[0] - rn * n[0], r[1] - rn * n[1], r[2] - rn * n[2]};
+    double tl = sqrt(dot3(t, t));
+    for (int a = 0; a < 3; a++) x[a] += t[a];
+    if (tl < 1e-12) break;
+  }
+  double dq = sqrt((x[0] - q[0]) * (x[0] - q[0]) + (x[1] - q[1]) * (x[1] - q[1]) + (x[2] - q[2]) * (x[2] - q[2]));
+  if (isfinite(dq) && dq < 0.25 * f->L) memcpy(q, x, sizeof x);
+}
+
+static int offset_eval(void *ud, size_t n, const double *x, const double *y, const double *z,
+                       double *out, gr_err *e) {
+  offset *f = ud;
+  __atomic_fetch_add(&f->ncalls, 1, __ATOMIC_RELAXED);
+  __atomic_fetch_add(&f->npts, (long)n, __ATOMIC_RELAXED);
+  enum { B = 256 };
+  double ph[B], qx[B], qy[B], qz[B], dd[B], tt[B], ti[B];
+  size_t idx[B];
+  for (size_t s = 0; s < n; s += B) {
+    size_t m = n - s < B ? n - s : B;
+    int rc = gr_field_eval(f->phi, m, x + s, y + s, z + s, ph, e);
+    if (rc) return rc;
+    double band = f->maxt + f->refine_band;
+    size_t k = 0;
+    for (size_t i = 0; i < m; i++) {
+      double lb = isfinite(f->lip) ? fabs(ph[i]) / f->lip : 0;
+      if (lb > band) {
+        /* certainly far from H: only the sign matters, keep a lower bound */
+        int in = f->side > 0 ? ph[i] > 0 : ph[i] < 0; /* inside the grown network */
+        out[s + i] = (f->kind == GR_OFFSET_NETWORK && in) ? -lb : lb - f->maxt;
+        continue;
+      }
+      double p[3] = {x[s + i], y[s + i], z[s + i]};
+      gr_hit h;
+      __atomic_fetch_add(&f->nquery, 1, __ATOMIC_RELAXED);
+      gr_bvh_closest(f->bvh, p, band, &h);
+      if (h.tri < 0) { /* nothing within the band: only the sign matters */
+        int in = f->side > 0 ? ph[i] > 0 : ph[i] < 0;
+        out[s + i] = (f->kind == GR_OFFSET_NETWORK && in) ? -band : band - f->maxt;
+        continue;
+      }
+      qx[k] = h.q[0];
+      qy[k] = h.q[1];
+      qz[k] = h.q[2];
+      dd[k] = sqrt((p[0] - h.q[0]) * (p[0] - h.q[0]) + (p[1] - h.q[1]) * (p[1] - h.q[1]) + (p[2] - h.q[2]) * (p[2] - h.q[2]));
+      idx[k++] = i;
+    }
+    if (k == 0) continue;
+    if ((rc = thick(f, f->t, k, qx, qy, qz, tt, e))) return rc;
+    if (f->tin && (rc = thick(f, f->tin, k, qx, qy, qz, ti, e))) return rc;
+    if (f->mode == GR_DIST_EXACT) {
+      /* refine q onto the analytic surface where g is small: there the
+       * value matters; elsewhere the mesh value has the right sign */
+      size_t nr = 0;
+      double rx[B], ry[B], rz[B], rt[B], rti[B];
+      size_t ri[B];
+      for (size_t q = 0; q < k; q++) {
+        size_t i = idx[q];
+        double T = (f->tin && ph[i] < 0) ? ti[q] : tt[q];
+        double g = (f->kind == GR_OFFSET_SHEET) ? dd[q] - T : fabs(dd[q] - T);
+        if (g > f->refine_band && (f->kind == GR_OFFSET_SHEET || dd[q] + T > f->refine_band)) continue;
+        double p[3] = {x[s + i], y[s + i], z[s + i]}, qq[3] = {qx[q], qy[q], qz[q]};
+        __atomic_fetch_add(&f->nrefine, 1, __ATOMIC_RELAXED);
+        exact_refine(f, p, qq);
+        qx[q] = qq[0]; qy[q] = qq[1]; qz[q] = qq[2];
+        dd[q] = sqrt((p[0] - qq[0]) * (p[0] - qq[0]) + (p[1] - qq[1]) * (p[1] - qq[1]) + (p[2] - qq[2]) * (p[2] - qq[2]));
+        rx[nr] = qq[0]; ry[nr] = qq[1]; rz[nr] = qq[2]; ri[nr++] = q;
+      }
+      if (nr) {
+        if ((rc = thick(f, f->t, nr, rx, ry, rz, rt, e))) return rc;
+        if (f->tin && (rc = thick(f, f->tin, nr, rx, ry, rz, rti, e))) return rc;
+        for (size_t r = 0; r < nr; r++) {
+          tt[ri[r]] = rt[r];
+          if (f->tin) ti[ri[r]] = rti[r];
+        }
+      }
+    }
+    for (size_t q = 0; q < k; q++) {
+      size_t i = idx[q];
+      double sd = ph[i] > 0 ? dd[q] : -dd[q];
+      if (f->kind == GR_OFFSET_SHEET) {
+        double T = (f->tin && ph[i] < 0) ? ti[q] : tt[q];
+        out[s + i] = dd[q] - T;
+      } else {
+        out[s + i] = (f->side > 0 ? -sd : sd) - tt[q];
+      }
+    }
+  }
+  return GR_OK;
+}
+
+gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
+  if (!o->surface) return gr_fail(e, GR_EARG, "bad option 'surface' (a field is needed)"), NULL;
+  if (!(o->cell > 0)) return gr_fail(e, GR_EARG, "bad option 'cell' (must be > 0, got %g)", o->cell), NULL;
+  if (o->res < 2) return gr_fail(e, GR_EARG, "bad option 'res' (must be >= 2, got %d)", o->res), NULL;
+  offset *f = calloc(1, sizeof *f);
+  if (!f) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
+  f->phi = gr_field_ref(o->surface);
+  f->L = o->cell;
+  memcpy(f->o, o->origin, sizeof f->o);
+  f->kind = o->kind;
+  f->side = o->side >= 0 ? 1 : -1;
+  f->mode = o->mode;
+  f->tconst = o->thickness;
+  f->lip = gr_field_lipschitz(o->surface);
+  const char *vars[] = {"x", "y", "z", "u", "v", "w"};
+  const char *cn[] = {"L"};
+  double cv[] = {o->cell};
+  if (o->thickness_expr && !(f->t = gr_expr_compile(o->thickness_expr, 6, vars, 1, cn, cv, e))) {
+    char m[512];
+    snprintf(m, sizeof m, "%s", e->msg);
+    gr_fail(e, GR_EARG, "bad option 'thickness' (%s)", m);
+    offset_free(f);
+    return NULL;
+  }
+  if (o->inside_expr && !(f->tin = gr_expr_compile(o->inside_expr, 6, vars, 1, cn, cv, e))) {
+    char m[512];
+    snprintf(m, sizeof m, "%s", e->msg);
+    gr_fail(e, GR_EARG, "bad option 'inside' (%s)", m);
+    offset_free(f);
+    return NULL;
+  }
+  if (!o->thickness_expr && !(o->thickness >= 0 && o->thickness <= o->cell / 2))
+    return offset_free(f), gr_fail(e, GR_EARG, "bad option 'thickness' (must be in [0, L/2 = %g], got %g)", o->cell / 2, o->thickness), NULL;
+  /* H over the box grown by a reach: margin + the largest thickness (from
+   * samples over the grown box) + two mesh spacings */
+  double tmax_est = f->tconst;
+  if (f->t || f->tin) {
+    enum { S = 8 };
+    double sx[S * S * S], sy[S * S * S], sz[S * S * S], st[S * S * S];
+    int n = 0;
+    for (int a = 0; a < S; a++)
+      for (int b = 0; b < S; b++)
+        for (int c = 0; c < S; c++, n++) {
+          double m = o->margin + 0.5 * o->cell;
+          sx[n] = o->box_lo[0] - m + (o->box_hi[0] - o->box_lo[0] + 2 * m) * a / (S - 1);
+          sy[n] = o->box_lo[1] - m + (o->box_hi[1] - o->box_lo[1] + 2 * m) * b / (S - 1);
+          sz[n] = o->box_lo[2] - m + (o->box_hi[2] - o->box_lo[2] + 2 * m) * c / (S - 1);
+        }
+    tmax_est = 0;
+    for (int pass = 0; pass < 2; pass++) {
+      const gr_expr *x = pass ? f->tin : f->t;
+      if (!x) continue;
+      gr_err e2;
+      if (thick(f, x, (size_t)n, sx, sy, sz, st, &e2) == GR_OK) {
+        for (int q = 0; q < n; q++)
+          if (st[q] > tmax_est) tmax_est = st[q];
+      } else {
+        tmax_est = 0.5 * o->cell;
+      }
+    }
+    if (tmax_est > 0.5 * o->cell) tmax_est = 0.5 * o->cell;
+  }
+  double reach = o->margin + 1.5 * tmax_est + 3 * o->cell / o->res;
+  if (o->mesh) {
+    f->h = o->mesh;
+  } else {
+    double lo[3], hi[3];
+    int n[3];
+    for (int a = 0; a < 3; a++) {
+      lo[a] = o->box_lo[a] - reach;
+      hi[a] = o->box_hi[a] + reach;
+      if (!(hi[a] > lo[a])) {
+        offset_free(f);
+        return gr_fail(e, GR_EARG, "bad option 'box' (empty along axis %d)", a), NULL;
+      }
+      n[a] = (int)ceil((hi[a] - lo[a]) / o->cell * o->res) + 1;
+    }
+    f->own = gr_mc_field(o->surface, lo, hi, n, 1, e);
+    if (!f->own) { offset_free(f); return NULL; }
+    f->h = f->own;
+  }
+  if (!(f->bvh = gr_bvh_new(f->h, e))) { offset_free(f); return NULL; }
+  /* thickness over H's vertices: validation and the narrow band */
+  size_t nv = f->h->nv;
+  double *buf = malloc((4 * nv + 1) * sizeof *buf);
+  if (!buf) { offset_free(f); return gr_fail(e, GR_EMEM, "out of memory"), NULL; }
+  double *vx = buf, *vy = buf + nv, *vz = buf + 2 * nv, *t = buf + 3 * nv;
+  for (size_t i = 0; i < nv; i++) { vx[i] = f->h->v[3 * i]; vy[i] = f->h->v[3 * i + 1]; vz[i] = f->h->v[3 * i + 2]; }
+  double maxt = f->tconst;
+  for (int pass = 0; pass < (f->tin ? 2 : 1) && (f->t || f->tin); pass++) {
+    const gr_expr *x = pass ? f->tin : f->t;
+    if (!x) continue;
+    if (thick(f, x, nv, vx, vy, vz, t, e)) {
+      char m[512];
+      snprintf(m, sizeof m, "%s", e->msg);
+      gr_fail(e, e->code, "bad option '%s' (%s)", pass ? "inside" : "thickness", m);
+      free(buf);
+      offset_free(f);
+      return NULL;
+    }
+    if (pass == 0) maxt = 0;
+    for (size_t i = 0; i < nv; i++) {
+      if (!(t[i] >= 0) || t[i] > o->cell / 2) {
+        gr_fail(e, GR_EARG, "bad option '%s' (must be in [0, L/2 = %g], got %g at x=%g, y=%g, z=%g)",
+                pass ? "inside" : "thickness", o->cell / 2, t[i], vx[i], vy[i], vz[i]);
+        free(buf);
+        offset_free(f);
+        return NULL;
+      }
+      if (t[i] > maxt) maxt = t[i];
+    }
+  }
+  free(buf);
+  f->maxt = 1.2 * maxt + 2 * o->cell / o->res;
+  f->tnear = 0.5 * maxt;
+  f->refine_band = 0.25 * o->cell / o->res; /* a quarter mesh spacing: far above H's error */
+  gr_field *g = gr_field_callback(offset_eval, NULL, f, offset_free, 1, o->kind == GR_OFFSET_SHEET ? "sheet offset" : "network offset");
+  if (!g) { offset_free(f); return gr_fail(e, GR_EMEM, "out of memory"), NULL; }
+  return g;
+}

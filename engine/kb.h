@@ -1,0 +1,147 @@
+/* kb.h: the persistent knowledge base of toolpath templates (paper s.3.1,
+ * 3.4; DESIGN.md "KB").
+ *
+ * A template holds what is computed once per unique graded voxel class: for
+ * each local layer a few ring sets (e.g. slot 0 section, slot 1 contour loops,
+ * slot 2 hatch region) and optionally one layer of prebuilt scans, in
+ * cell-local coordinates, plus a signature, quality figures and provenance.
+ *
+ * The store is a directory: t/<key>.gtp (one checksummed binary blob per
+ * template, authoritative), index.yaml (a cache rebuilt from the blobs when
+ * missing or damaged) and a `lock` file for flock. Every write goes through a
+ * temporary file in the same directory and a rename, under the lock, so two
+ * processes or a crash never leave a half-written file in place. Readers never
+ * trust a file: a damaged blob is reported as a warning and treated as absent.
+ * The format is described byte by byte in doc/kb.md.
+ *
+ * Thread safety: gr_kb_get may be called from several threads at once on one
+ * gr_kb (reads touch no shared mutable state). gr_kb_put, gr_kb_list,
+ * gr_kb_verify and gr_kb_prune serialise themselves (a mutex in gr_kb plus
+ * flock across processes). */
+#ifndef GR_KB_H
+#define GR_KB_H
+#include "common.h"
+#include "paths.h"
+
+/* ---- SHA-256 (FIPS 180-4) ---- */
+typedef struct gr_sha256 {
+  uint32_t h[8];         /* chaining state */
+  uint64_t len;          /* bytes hashed so far */
+  unsigned char buf[64]; /* pending partial block */
+  size_t nbuf;           /* bytes in buf */
+} gr_sha256;
+void gr_sha256_init(gr_sha256 *s);
+void gr_sha256_update(gr_sha256 *s, const void *data, size_t n);
+void gr_sha256_final(gr_sha256 *s, unsigned char out[32]);
+/* One-shot digest as 64 lowercase hex characters plus NUL. */
+void gr_sha256_hex(const void *data, size_t n, char out[65]);
+
+/* ---- templates ---- */
+#define GR_TEMPLATE_NQ 8
+typedef struct gr_template {
+  char key[65];          /* lowercase hex SHA-256 of `signature` (64 chars + NUL) */
+  char *signature;       /* canonical signature text (UTF-8, e.g. one YAML flow map), owned */
+  int nlayers;           /* local layers */
+  int nslots;            /* ring sets per layer */
+  double *z;             /* nlayers local heights, mm */
+  gr_rings **rings;      /* nlayers*nslots ring sets, rings[layer*nslots + slot], cell-local mm, owned */
+  gr_layer **extra;      /* nlayers prebuilt scan layers (e.g. thin-wall scans), cell-local mm, or NULL; owned */
+  double quality[GR_TEMPLATE_NQ]; /* caller-defined figures (e.g. pore, overmelt, max contour deviation mm); NaN = unknown */
+  int qualified;         /* 1 if it passed the qualification rules, else 0 */
+  long long created;     /* creation time, Unix seconds UTC; 0 = unset (gr_kb_put fills it in) */
+  char *meta;            /* free-text (YAML) provenance: version, date, parameters; owned, may be NULL */
+} gr_template;
+
+/* New template with `nlayers` z = 0, every ring set allocated and empty,
+ * extra layers allocated (z = 0) if with_extra, quality all NaN, key computed
+ * from `signature` (copied). Returns NULL and fills e on a bad argument
+ * (nlayers < 0, nslots < 1, NULL signature) or out of memory. */
+gr_template *gr_template_new(const char *signature, int nlayers, int nslots,
+                             int with_extra, gr_err *e);
+void gr_template_free(gr_template *t); /* NULL is fine */
+/* Replace meta with a copy of `meta` (NULL clears it). */
+int gr_template_set_meta(gr_template *t, const char *meta, gr_err *e);
+static inline gr_rings *gr_template_rings(const gr_template *t, int layer, int slot) {
+  return t->rings[(size_t)layer * (size_t)t->nslots + (size_t)slot];
+}
+
+/* Serialise the whole blob (header + payload, doc/kb.md) into a new malloc'd
+ * buffer *buf of *n bytes (caller frees). Fails with GR_EARG if the key does
+ * not match the signature or a field is out of range. */
+int gr_template_encode(const gr_template *t, unsigned char **buf, size_t *n,
+                       gr_err *e);
+/* Parse and check a blob: magic, version, header size, payload length,
+ * checksum, every count against the bytes left, key = SHA-256(signature).
+ * Any defect gives GR_EPARSE with a message saying which check failed, and
+ * *out = NULL. Never trusts the input (safe on arbitrary bytes). */
+int gr_template_decode(const void *buf, size_t n, gr_template **out, gr_err *e);
+
+/* ---- the store ---- */
+typedef struct gr_kb gr_kb;
+
+/* Directory used when none is given: $GRADUS_CACHE_DIR/kb if set and not
+ * empty, else $XDG_CACHE_HOME/gradus/kb, else $HOME/.cache/gradus/kb.
+ * GR_EARG when none of these is set or the path does not fit in n. */
+int gr_kb_default_dir(char *out, size_t n);
+/* Open (creating the directory with its parents, t/ and lock if missing).
+ * NULL and e filled on failure. */
+gr_kb *gr_kb_open(const char *dir, gr_err *e);
+void gr_kb_close(gr_kb *kb); /* NULL is fine */
+const char *gr_kb_dir(const gr_kb *kb);
+
+/* Look a template up by key. GR_OK with *out = NULL when absent, or when the
+ * blob is damaged: then `warning` (wn bytes, may be NULL) says why and the
+ * caller may rebuild and put it again. warning[0] = 0 when all is well.
+ * GR_EARG if key is not 64 lowercase hex digits. The caller frees *out. */
+int gr_kb_get(gr_kb *kb, const char *key, gr_template **out, char *warning,
+              size_t wn, gr_err *e);
+/* Store t (replacing any blob of the same key) and update the index. If
+ * t->created is 0 the current time is recorded. */
+int gr_kb_put(gr_kb *kb, const gr_template *t, gr_err *e);
+
+/* One index entry. */
+typedef struct gr_kb_entry {
+  char key[65];                   /* 64 hex digits */
+  char *signature;                /* owned */
+  size_t bytes;                   /* blob file size, bytes */
+  int qualified;                  /* 0 or 1 */
+  double quality[GR_TEMPLATE_NQ]; /* as stored */
+  long long created;              /* Unix seconds UTC */
+} gr_kb_entry;
+/* All templates in key order, from the index; the index is rebuilt from the
+ * blobs (and rewritten) when it is missing, unparsable or disagrees with the
+ * blob files present. Damaged blobs found while rebuilding are left out and
+ * named in `warning` (may be NULL). Free with gr_kb_entries_free. */
+int gr_kb_list(gr_kb *kb, gr_kb_entry **out, size_t *n, char *warning,
+               size_t wn, gr_err *e);
+void gr_kb_entries_free(gr_kb_entry *v, size_t n);
+
+/* What verify and prune found and did. */
+typedef struct gr_kb_report {
+  size_t ok;        /* blobs that decode and match their name */
+  size_t corrupt;   /* blobs that do not */
+  size_t orphans;   /* leftover temporary files seen */
+  size_t removed;   /* files removed (prune only) */
+  size_t index_entries; /* entries in the index afterwards */
+  int index_ok;     /* verify: 1 if index.yaml parses and lists exactly the good blobs */
+  char *messages;   /* one line per finding, '\n'-separated; owned, may be NULL */
+} gr_kb_report;
+void gr_kb_report_clear(gr_kb_report *r); /* frees messages, zeroes counts */
+
+/* Read every blob in t/ and decode it fully; count ok / corrupt, note orphan
+ * temporaries and whether the index agrees. Changes nothing. */
+int gr_kb_verify(gr_kb *kb, gr_kb_report *r, gr_err *e);
+
+typedef struct gr_kb_prune_opts {
+  long long older_than;   /* remove templates created before this Unix time, s; 0 = no age limit */
+  const char *const *keep; /* with use_keep: keys to keep; every other template is removed */
+  size_t nkeep;           /* entries in keep */
+  int use_keep;           /* 1 to apply the keep-set */
+} gr_kb_prune_opts;
+/* Under the lock: remove orphan temporary files, damaged blobs, and the
+ * templates selected by opts (may be NULL: orphans and damaged blobs only),
+ * then rewrite the index from what is left. */
+int gr_kb_prune(gr_kb *kb, const gr_kb_prune_opts *opts, gr_kb_report *r,
+                gr_err *e);
+
+#endif

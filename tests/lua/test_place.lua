@@ -1,0 +1,175 @@
+-- Placement and the knowledge base, end to end through gradus.place.job and
+-- the CLI reader: layer heights, knowledge base vs direct computation, warm
+-- and corrupt knowledge bases, trimming at a domain boundary, joining across
+-- voxels, islands, lasers, bad input.
+local t = require "gradus.testing"
+local tmp = os.tmpname()
+os.remove(tmp)
+gradus.mkdir(tmp)
+
+local T = "0.06 + 0.03*z" -- graded along the part's height (global z, mm)
+
+local function job(o)
+  local j = gradus.place.job {
+    cell = 2, cells = o.cells or { 2, 2, 1 }, layer = o.layer or 0.04, hatch = 0.05,
+    pattern = o.pattern or "parallel", angle = o.angle or 45, rotation = o.rotation or 67,
+    contours = o.contours or 1, res = 30, threads = 2, lasers = o.lasers or 1, mode = o.mode or "exact",
+  }
+  local s = j:spec { surface = o.surface or "primitive", thickness = o.thickness or T }
+  local c = o.cells or { 2, 2, 1 }
+  for k = 0, c[3] - 1 do
+    for jj = 0, c[2] - 1 do
+      for i = 0, c[1] - 1 do j:voxel(i, jj, k, { spec = s }) end
+    end
+  end
+  return j
+end
+
+local function points_of(layer, kind)
+  local pts = {}
+  for _, b in ipairs(layer:blocks()) do
+    if not kind or b.kind == kind then
+      for q = 1, #b.points, 2 do pts[#pts + 1] = { b.points[q], b.points[q + 1] } end
+    end
+  end
+  return pts
+end
+
+t.test("layer count and heights follow SPEC s.4", function()
+  local j = job { cells = { 1, 1, 1 } }
+  t.eq(j:layers(), 50, "N = round(2 / 0.04)")
+  local out = tmp .. "/heights.cli"
+  local st = j:run { output = out, format = "ascii", kb = false }
+  t.eq(st.layers, 50, "layers written")
+  local cli = gradus.cli.read(out)
+  t.eq(#cli.layers, 50, "layers read back")
+  for k, l in ipairs(cli.layers) do t.near(l:z(), k * 0.04, 1e-6, "z of layer " .. k) end
+end)
+
+local function compare_cli(a, b, tol)
+  local A, B = gradus.cli.read(a), gradus.cli.read(b)
+  t.eq(#A.layers, #B.layers, "layer counts")
+  local worst = 0
+  for k = 1, #A.layers do
+    local pa, pb = points_of(A.layers[k]), points_of(B.layers[k])
+    t.eq(#pa, #pb, "point count of layer " .. k)
+    for q = 1, math.min(#pa, #pb) do
+      worst = math.max(worst, math.abs(pa[q][1] - pb[q][1]), math.abs(pa[q][2] - pb[q][2]))
+    end
+  end
+  t.ok(worst <= tol, ("largest coordinate difference %.3g mm > %.3g"):format(worst, tol))
+  return worst
+end
+
+t.test("knowledge base output equals direct output", function()
+  local kb = tmp .. "/kb1"
+  local a = job {}:run { output = tmp .. "/kb.cli", format = "binary", kb = kb, first = 1, last = 12 }
+  local b = job {}:run { output = tmp .. "/direct.cli", format = "binary", kb = false, direct = true, first = 1, last = 12 }
+  t.eq(a.templates.unique, 1, "T depends on z only: one class per z-row")
+  t.eq(b.templates.unique, 4, "direct: one per voxel")
+  t.eq(a.vectors.hatch.count, b.vectors.hatch.count, "hatch vectors")
+  t.eq(a.vectors.contour.count, b.vectors.contour.count, "contour vectors")
+  compare_cli(tmp .. "/kb.cli", tmp .. "/direct.cli", 1e-3) -- quantisation 1 um, binary float32
+end)
+
+t.test("a warm knowledge base builds nothing; a corrupt record is rebuilt", function()
+  local kb = tmp .. "/kb2"
+  local a = job {}:run { output = tmp .. "/w1.cli", format = "binary", kb = kb, first = 1, last = 5 }
+  t.eq(a.templates.built, 1, "cold: built")
+  local b = job {}:run { output = tmp .. "/w2.cli", format = "binary", kb = kb, first = 1, last = 5 }
+  t.eq(b.templates.built, 0, "warm: nothing built")
+  t.eq(b.templates.reused, 1, "warm: reused")
+  -- corrupt every template file: flip a byte in the middle
+  local p = io.popen("ls '" .. kb .. "'/t/*.gtp")
+  for f in p:lines() do
+    local h = io.open(f, "r+b")
+    local size = h:seek("end")
+    h:seek("set", size // 2)
+    local c = h:read(1)
+    h:seek("set", size // 2)
+    h:write(string.char((c:byte() + 1) % 256))
+    h:close()
+  end
+  p:close()
+  local c = job {}:run { output = tmp .. "/w3.cli", format = "binary", kb = kb, first = 1, last = 5 }
+  t.eq(c.templates.built, 1, "corrupt record rebuilt")
+  t.ok(c.templates.corrupt_rebuilt >= 1, "corruption reported")
+  compare_cli(tmp .. "/w1.cli", tmp .. "/w3.cli", 1e-9)
+end)
+
+t.test("trimmed voxels: no vector outside an implicit domain", function()
+  local j = job { cells = { 2, 2, 1 } }
+  local R = 1.7
+  j:domain(gradus.field.expr(("sqrt((x-2)^2 + (y-2)^2 + (z-1)^2) - %g"):format(R)))
+  local out = tmp .. "/trim.cli"
+  local st = j:run { output = out, format = "ascii", kb = false }
+  t.ok(st.trimmed_voxels == 4, "all four voxels are cut by the sphere")
+  local cli = gradus.cli.read(out)
+  local worst = -1
+  for k, l in ipairs(cli.layers) do
+    local zm = k * 0.04 - 0.02
+    for _, p in ipairs(points_of(l)) do
+      local r = math.sqrt((p[1] - 2) ^ 2 + (p[2] - 2) ^ 2 + (zm - 1) ^ 2)
+      worst = math.max(worst, r - R)
+    end
+  end
+  t.ok(worst <= 1e-4, ("a scan point lies %.4g mm outside the sphere"):format(worst))
+end)
+
+t.test("continuous mode joins contours and hatches across voxel borders", function()
+  local st, kept = job { cells = { 2, 1, 1 }, angle = 0, rotation = 0 }:run { kb = false, keep = { 10, 30 } }
+  local crossing_contour, crossing_hatch = false, false
+  for _, g in ipairs({ 10, 30 }) do
+    for _, b in ipairs(kept[g]:blocks()) do
+      local minx, maxx = math.huge, -math.huge
+      for q = 1, #b.points, 2 do minx = math.min(minx, b.points[q]); maxx = math.max(maxx, b.points[q]) end
+      if b.kind == "contour" and minx < 1.99 and maxx > 2.01 then crossing_contour = true end
+      if b.kind == "contour" and b.shape == "open" then
+        -- an open contour may only end on the part's outer boundary, never on the inner voxel border x = 2
+        for _, q in ipairs({ 1, #b.points - 1 }) do
+          local x, y = b.points[q], b.points[q + 1]
+          local on_outer = math.abs(x) < 1e-6 or math.abs(x - 4) < 1e-6 or math.abs(y) < 1e-6 or math.abs(y - 2) < 1e-6
+          t.ok(on_outer, ("open contour ends inside the part at (%.4f, %.4f)"):format(x, y))
+        end
+      end
+      if b.kind == "hatch" then
+        for q = 1, #b.points, 4 do
+          local x0, x1 = b.points[q], b.points[q + 2]
+          if math.min(x0, x1) < 1.99 and math.max(x0, x1) > 2.01 then crossing_hatch = true end
+        end
+      end
+    end
+  end
+  t.ok(crossing_contour, "a contour spans both voxels (joined)")
+  t.ok(crossing_hatch, "a hatch vector spans both voxels (joined)")
+  -- island mode keeps every vector inside its voxel
+  local _, kept2 = job { cells = { 2, 1, 1 }, pattern = "island", angle = 0, rotation = 0 }:run { kb = false, keep = { 10 } }
+  for _, b in ipairs(kept2[10]:blocks()) do
+    local minx, maxx = math.huge, -math.huge
+    for q = 1, #b.points, 2 do minx = math.min(minx, b.points[q]); maxx = math.max(maxx, b.points[q]) end
+    t.ok(not (minx < 1.999 and maxx > 2.001), "island vector crosses the voxel border")
+  end
+end)
+
+t.test("two lasers share the work", function()
+  local j = job { cells = { 2, 2, 1 }, lasers = 2 }
+  local st = j:run { kb = false, first = 1, last = 10 }
+  t.eq(#st.lasers, 2, "two lasers")
+  t.ok(st.lasers[1].share > 0.2 and st.lasers[2].share > 0.2, "both lasers scan")
+  t.ok(st.balance_efficiency > 0.8, "makespan near a perfect balance")
+end)
+
+t.test("bad input", function()
+  t.raises(function() gradus.place.job { hatch = -0.05 } end, "hatch spacing must be > 0 mm, got %-0.05")
+  t.raises(function() gradus.place.job { layer = 0 } end, "layer thickness must be > 0")
+  t.raises(function() gradus.place.job { layer = 3, cell = 2 } end, "larger than the cell")
+  t.raises(function() gradus.place.job { angle = 0 / 0 } end, "angle must be a number")
+  t.raises(function() gradus.place.job { slice_cell = 0.05, hatch = 0.05 } end, "eq. 7")
+  local j = gradus.place.job {}
+  t.raises(function() j:spec { surface = "nope", thickness = 0.1 } end, "unknown surface 'nope'")
+  t.raises(function() j:spec { thickness = "0.1*" } end, "thickness")
+  t.raises(function() j:run { output = "/nonexistent_dir/x.cli", kb = false } end, "/nonexistent_dir/x.cli")
+end)
+
+os.execute("rm -rf '" .. tmp .. "'")
+t.done()
