@@ -8,36 +8,54 @@ local M = {}
 
 local sections -- name -> text
 
+-- Per API file: the module prefix of relative names and the userdata type of
+-- its "obj:method" entries.
+local FILES = {
+  ["field.md"] = { "field.", "field" }, ["mesh.md"] = { "mesh.", "mesh" },
+  ["hatch.md"] = { "hatch.", "layer" }, ["distance.md"] = { "distance.", "rings" },
+  ["place.md"] = { "place.", "job" }, ["host.md"] = { "", nil },
+}
+
 local function load_sections()
   if sections then return sections end
   sections = {}
   local root = gradus.root
   if not root then return sections end
-  local p = io.popen("ls '" .. root .. "/doc/api/' 2>/dev/null")
-  local files = {}
-  if p then
-    for f in p:lines() do if f:match("%.md$") then files[#files + 1] = root .. "/doc/api/" .. f end end
-    p:close()
-  end
-  for _, path in ipairs(files) do
-    local f = io.open(path)
+  for file, spec in pairs(FILES) do
+    local f = io.open(root .. "/doc/api/" .. file)
     if f then
+      local prefix, mtype = spec[1], spec[2]
       local names, buf = nil, {}
       local function flush()
         if names then
           local text = table.concat(buf, "\n"):gsub("^%s+", ""):gsub("%s+$", "")
-          for _, n in ipairs(names) do sections[n] = sections[n] or (names.heading .. "\n" .. text) end
+          for _, n in ipairs(names) do sections[n] = sections[n] or text end
         end
       end
       for line in f:lines() do
-        if line:match("^#+ ") then
+        local is_entry = line:match("^#+ ") or line:match("^%s*[-*] ") or line:match("^|")
+        local found = {}
+        if is_entry then
+          for tok in line:gmatch("([%a_][%w_%.:]*)%s*[%(%{]") do found[#found + 1] = tok end
+          for tok in line:gmatch("`([%a_][%w_%.:]*)`") do found[#found + 1] = tok end
+        end
+        if #found > 0 then
           flush()
-          names, buf = { heading = line:gsub("^#+%s*", "") }, {}
-          for sig in line:gmatch("`([^`]+)`") do
-            local n = sig:match("^([%w_%.:]+)%s*%(") or sig:match("^([%w_%.:]+)$")
-            if n then names[#names + 1] = n:gsub("^gradus%.", "") end
+          names, buf = {}, { line }
+          for _, tok in ipairs(found) do
+            local n = tok:gsub("^gradus%.", "")
+            local obj, meth = n:match("^([%w_]+):([%w_]+)$")
+            if obj then
+              names[#names + 1] = (FILES[obj .. ".md"] and obj or (mtype or obj)) .. ":" .. meth
+              names[#names + 1] = obj .. ":" .. meth
+            elseif tok:match("^gradus%.") or n:find("%.") then
+              names[#names + 1] = n
+            else
+              names[#names + 1] = prefix .. n
+              names[#names + 1] = n
+            end
           end
-        else
+        elseif names then
           buf[#buf + 1] = line
         end
       end
