@@ -6,6 +6,7 @@
 #include <string.h>
 #include "bind.h"
 #include "cli.h"
+#include "raster.h"
 
 static void push_header(lua_State *L, const gr_cli_header *h) {
   lua_newtable(L);
@@ -130,10 +131,27 @@ static int l_info(lua_State *L) {
   return 1;
 }
 
+/* gradus.png.layer(path, layer, {width=800, line_width=1.2, jumps=false}) */
+static int l_png_layer(lua_State *L) {
+  const char *path = luaL_checkstring(L, 1);
+  gr_layer *l = gr_check_layer(L, 2);
+  gr_png_opts o = {gr_opt_integer(L, 3, "width", 800), gr_opt_number(L, 3, "line_width", 1.2),
+                   gr_opt_boolean(L, 3, "jumps", 0)};
+  gr_err e;
+  gr_err_clear(&e);
+  if (gr_png_layer(path, l, &o, &e)) return gr_lua_error(L, &e);
+  lua_pushstring(L, path);
+  return 1;
+}
+
+static const luaL_Reg png_fns[] = {{"layer", l_png_layer}, {NULL, NULL}};
+
 static const luaL_Reg cli_fns[] = {{"read", l_read}, {"info", l_info}, {NULL, NULL}};
 
 int gr_open_io(lua_State *L) {
   luaL_newlib(L, cli_fns);
   lua_setfield(L, -2, "cli");
+  luaL_newlib(L, png_fns);
+  lua_setfield(L, -2, "png");
   return 0;
 }

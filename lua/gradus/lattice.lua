@@ -157,6 +157,7 @@ function M.run(p, out)
   for item in tostring(p.pictures):gmatch("[^,]+") do keep[#keep + 1] = tonumber(item) end
   local kb = p.kb
   if kb == "" then kb = nil end
+  if out then gradus.mkdir(gradus.dirname(out)) end
   local st, kept = job:run {
     output = out, format = p.format, kb = kb ~= "off" and (kb or true) or false,
     direct = kb == "off", first = first, last = last, keep = keep, split = p.split,
