@@ -148,7 +148,7 @@ static int h_angle(lua_State *L) {
   return 1;
 }
 
-static const char *const VERIFY_KEYS[] = {"track", "pixel", "offset", "spacing", "contours", NULL};
+static const char *const VERIFY_KEYS[] = {"track", "pixel", "offset", "spacing", "contours", "clip_lo", "clip_hi", NULL};
 
 /* gradus.hatch.verify(section, layer, {track=, pixel=, offset=, spacing=,
  * contours=}) -> {pore=, overmelt=, max_dev=, mean_dev=, solid_area=, ...} */
@@ -163,6 +163,7 @@ static int h_verify(lua_State *L) {
   o.offset = gr_opt_number(L, 3, "offset", NAN);
   o.spacing = gr_opt_number(L, 3, "spacing", NAN);
   o.contours = gr_opt_integer(L, 3, "contours", 1);
+  o.clip = gr_opt_vec(L, 3, "clip_lo", 2, o.clip_lo) & gr_opt_vec(L, 3, "clip_hi", 2, o.clip_hi);
   int owned;
   gr_rings *sec = to_rings(L, 1, &owned);
   if (owned) gr_push_rings(L, sec);

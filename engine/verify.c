@@ -12,6 +12,8 @@ gr_verify_opts gr_verify_defaults(void) {
   o.spacing = NAN;
   o.contours = 1;
   o.max_pixels = 100000000L;
+  o.clip = 0;
+  o.clip_lo[0] = o.clip_lo[1] = o.clip_hi[0] = o.clip_hi[1] = 0;
   return o;
 }
 
@@ -152,6 +154,9 @@ int gr_verify_layer(const gr_rings *section, const gr_layer *l, const gr_verify_
     if (B->kind == GR_CONTOUR && B->shape != GR_SEGMENTS) {
       size_t m = B->n - (B->shape == GR_CLOSED && B->n > 1 ? 1 : 0);
       for (size_t k = 0; k < m; k++) {
+        if (o->clip && (p[2 * k] < o->clip_lo[0] + 2 * tr || p[2 * k] > o->clip_hi[0] - 2 * tr ||
+                        p[2 * k + 1] < o->clip_lo[1] + 2 * tr || p[2 * k + 1] > o->clip_hi[1] - 2 * tr))
+          continue;
         double dist = dist_boundary(section, p[2 * k], p[2 * k + 1]), dev = INFINITY;
         for (int c = 0; c < o->contours; c++) dev = fmin(dev, fabs(dist - (b + c * sp)));
         dsum += dev;
@@ -162,6 +167,10 @@ int gr_verify_layer(const gr_rings *section, const gr_layer *l, const gr_verify_
   }
   size_t solid = 0, melt = 0, pore = 0, over = 0;
   for (size_t k = 0; k < (size_t)nx * ny; k++) {
+    if (o->clip) {
+      double cx = lo[0] + ((double)(k % (size_t)nx) + 0.5) * px, cy = lo[1] + ((double)(k / (size_t)nx) + 0.5) * px;
+      if (cx < o->clip_lo[0] || cx > o->clip_hi[0] || cy < o->clip_lo[1] || cy > o->clip_hi[1]) continue;
+    }
     unsigned char v = img[k];
     solid += v & 1;
     melt += (v >> 1) & 1;

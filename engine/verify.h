@@ -15,6 +15,10 @@ typedef struct gr_verify_opts {
   double spacing; /* distance between successive contours, mm; NaN = track */
   int contours;   /* contour levels expected (b + i*spacing, i < contours); >= 1 */
   long max_pixels;/* refuse larger rasters (GR_EARG); default 1e8 */
+  int clip;       /* 1: count only pixels (and contour points) inside clip_lo..clip_hi */
+  double clip_lo[2], clip_hi[2]; /* mm; contour points are measured only when at
+                    least 2 tracks inside the clip box (the window's border edges
+                    of a windowed section are not part boundary) */
 } gr_verify_opts;
 
 /* track 0.1, pixel NaN, offset NaN, spacing NaN, contours 1, max 1e8. */

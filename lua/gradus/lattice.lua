@@ -179,7 +179,7 @@ function M.run(p, out)
   end
   local pics = {}
   for _, g in ipairs(keep) do
-    if kept[g] then
+    if kept[g] and out then
       local base = (out or "out/layer"):gsub("%.cli$", "")
       local path = ("%s_layer%d.svg"):format(base, g)
       gradus.svg.layer(path, kept[g], { title = ("layer %d, z = %.3f mm"):format(g, kept[g]:z()), jumps = true })
