@@ -11,7 +11,7 @@ local tmp = os.getenv("TMPDIR") or "/tmp"
 local dir = tmp .. "/gradus_bench_cube"
 os.execute("rm -rf '" .. dir .. "'")
 gradus.mkdir(dir)
-local direct_layers = gradus.param("direct_layers", 50)
+local direct_layers = gradus.param("direct_layers", 5)
 local common = "-D cells=20,20,20 -D cell=2 -D layer=0.04 -D hatch=0.05 -D format=binary " ..
   "-D 'thickness=0.06 + 0.002*z' -D res=40 -q"
 

@@ -17,6 +17,8 @@ local modes = gradus.param("modes", "exact,mesh")
 local d, t, b, L = 0.05, 0.04, 0.025, 2.0
 local T = { sheet = "0.1*(2*sin(pi*(w+1)/4)+1)", network = "0.1" }
 
+local kbdir = os.tmpname()
+os.remove(kbdir)
 local function list(s) local o = {} for x in s:gmatch("[^,]+") do o[#o + 1] = x end return o end
 
 local rows = {}
@@ -25,7 +27,7 @@ for _, surface in ipairs(list(surfaces)) do
     for _, mode in ipairs(list(modes)) do
       local p = lattice.params()
       p.surface, p.kind, p.thickness, p.mode, p.res = surface, kind, T[kind], mode, res
-      p.cells, p.layer, p.hatch, p.contours, p.kb = "3,3,1", t, d, 1, "off"
+      p.cells, p.layer, p.hatch, p.contours, p.kb = "3,3,1", t, d, 1, kbdir
       local keep = {}
       for g = 3, math.floor(L / t + 0.5), step do keep[#keep + 1] = g end
       p.pictures = ""
@@ -59,5 +61,6 @@ for _, surface in ipairs(list(surfaces)) do
     end
   end
 end
+os.execute("rm -rf '" .. kbdir .. "'")
 local out = gradus.param("out", "")
 if out ~= "" then gradus.yaml.save(out, { quality = rows, date = os.date("!%Y-%m-%d"), step = step, res = res }) end
