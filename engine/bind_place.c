@@ -358,7 +358,7 @@ static int l_run(lua_State *L) {
   /* writers */
   gr_cli_header h = gr_cli_header_defaults();
   h.binary = binary;
-  h.layers = r.last > 0 || r.first > 0 ? 0 : gr_job_layers(j);
+  h.nlasers = o->nlasers;
   int ga = r.first > 0 ? r.first : 1, gb = r.last > 0 && r.last < gr_job_layers(j) ? r.last : gr_job_layers(j);
   h.layers = gb - ga + 1;
   for (int a = 0; a < 3; a++) {

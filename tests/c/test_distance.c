@@ -1,0 +1,432 @@
+/* test_distance.c: BVH closest points and graded offset fields against
+ * analytic truth (brute force, spheres, cylinders, an independent
+ * Lagrange-Newton closest point on the P surface). */
+#include <stdlib.h>
+#include <string.h>
+#include "check.h"
+#include "distance.h"
+#include "mc.h"
+
+static const double PI = 3.14159265358979323846;
+
+/* deterministic uniform numbers in [0, 1) */
+static double rnd(unsigned long long *s) {
+  *s = *s * 6364136223846793005ULL + 1442695040888963407ULL;
+  return (double)(*s >> 11) / 9007199254740992.0;
+}
+
+static double dist3(const double *a, const double *b) {
+  return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+TEST(triangle_vs_sampling) {
+  unsigned long long s = 7;
+  for (int trial = 0; trial < 40; trial++) {
+    double a[3], b[3], c[3], p[3], q[3];
+    for (int k = 0; k < 3; k++) {
+      a[k] = 2 * rnd(&s) - 1; b[k] = 2 * rnd(&s) - 1; c[k] = 2 * rnd(&s) - 1;
+      p[k] = 4 * rnd(&s) - 2;
+    }
+    gr_closest_on_triangle(p, a, b, c, q);
+    double d = dist3(p, q);
+    /* q lies on the triangle: inside its bounding box and on its plane */
+    double n[3] = {(b[1] - a[1]) * (c[2] - a[2]) - (b[2] - a[2]) * (c[1] - a[1]),
+                   (b[2] - a[2]) * (c[0] - a[0]) - (b[0] - a[0]) * (c[2] - a[2]),
+                   (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])};
+    double nn = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    CHECK_NEAR(((q[0] - a[0]) * n[0] + (q[1] - a[1]) * n[1] + (q[2] - a[2]) * n[2]) / nn, 0, 1e-12);
+    int N = 300;
+    double best = INFINITY, maxe = fmax(dist3(a, b), fmax(dist3(b, c), dist3(a, c)));
+    for (int i = 0; i <= N; i++)
+      for (int j = 0; i + j <= N; j++) {
+        double u = (double)i / N, v = (double)j / N, x[3];
+        for (int k = 0; k < 3; k++) x[k] = a[k] + u * (b[k] - a[k]) + v * (c[k] - a[k]);
+        double dd = dist3(p, x);
+        if (dd < best) best = dd;
+      }
+    CHECK(best >= d - 1e-12, "trial %d: sampled %.12g below exact %.12g", trial, best, d);
+    CHECK(best - d <= 2 * maxe / N, "trial %d: sampled %.12g, exact %.12g", trial, best, d);
+  }
+}
+
+static gr_mesh *sphere_mesh(int n, gr_err *e) {
+  gr_field *f = gr_field_expr("sqrt(x^2+y^2+z^2)-3", e);
+  if (!f) return NULL;
+  double lo[3] = {-4, -4, -4}, hi[3] = {4, 4, 4};
+  int nn[3] = {n, n, n};
+  gr_mesh *m = gr_mc_field(f, lo, hi, nn, 1, e);
+  gr_field_free(f);
+  return m;
+}
+
+TEST(bvh_sphere) {
+  gr_err e;
+  gr_mesh *m = sphere_mesh(33, &e);
+  CHECK(m != NULL, "%s", e.msg);
+  if (!m) return;
+  gr_bvh *b = gr_bvh_new(m, &e);
+  CHECK(b != NULL, "%s", e.msg);
+  if (!b) { gr_mesh_free(m); return; }
+  /* chord error: vertices lie on |x| = 3, a triangle of circumradius rc
+   * comes no closer to the centre than sqrt(R^2 - rc^2) */
+  double R = 3, sag = 0;
+  for (size_t t = 0; t < m->nf; t++) {
+    const double *A = m->v + 3 * m->f[3 * t], *B = m->v + 3 * m->f[3 * t + 1], *C = m->v + 3 * m->f[3 * t + 2];
+    double la = dist3(B, C), lb = dist3(A, C), lc = dist3(A, B);
+    double sp = 0.5 * (la + lb + lc), ar = sqrt(fmax(sp * (sp - la) * (sp - lb) * (sp - lc), 0));
+    double rc = ar > 0 ? la * lb * lc / (4 * ar) : R;
+    double sg = R - sqrt(fmax(R * R - rc * rc, 0));
+    if (sg > sag) sag = sg;
+  }
+  CHECK(sag < 0.05, "chord error %g", sag);
+  unsigned long long s = 11;
+  for (int i = 0; i < 500; i++) {
+    double p[3];
+    for (int k = 0; k < 3; k++) p[k] = 12 * rnd(&s) - 6;
+    gr_hit h;
+    CHECK(gr_bvh_closest(b, p, INFINITY, &h) == GR_OK, "closest");
+    double bf = INFINITY;
+    for (size_t t = 0; t < m->nf; t++) {
+      double q[3];
+      gr_closest_on_triangle(p, m->v + 3 * m->f[3 * t], m->v + 3 * m->f[3 * t + 1], m->v + 3 * m->f[3 * t + 2], q);
+      double d = dist3(p, q);
+      if (d < bf) bf = d;
+    }
+    CHECK(h.tri >= 0 && h.tri < (long)m->nf, "triangle %ld", h.tri);
+    CHECK_NEAR(h.dist, bf, 1e-12);
+    CHECK_NEAR(dist3(p, h.q), h.dist, 1e-12);
+    double r = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+    CHECK_NEAR(h.dist, fabs(r - R), sag + 1e-9);
+  }
+  /* cut-off: a point 3 mm outside finds nothing within 1 mm */
+  double p[3] = {6, 0, 0};
+  gr_hit h;
+  gr_bvh_closest(b, p, 1.0, &h);
+  CHECK(h.tri == -1 && isinf(h.dist), "cut-off 1: tri %ld dist %g", h.tri, h.dist);
+  gr_bvh_closest(b, p, 3.5, &h);
+  CHECK(h.tri >= 0, "cut-off 3.5: tri %ld", h.tri);
+  CHECK_NEAR(h.dist, 3, sag + 1e-9);
+  gr_bvh_free(b);
+  gr_mesh_free(m);
+}
+
+TEST(bvh_errors) {
+  gr_err e;
+  gr_mesh *m = gr_mesh_new();
+  CHECK(gr_bvh_new(m, &e) == NULL && e.code == GR_EARG, "empty mesh: code %d", e.code);
+  CHECK(strstr(e.msg, "empty") != NULL, "message '%s'", e.msg);
+  gr_mesh_add_vertex(m, 0, 0, 0);
+  gr_mesh_add_vertex(m, 1, NAN, 0);
+  gr_mesh_add_vertex(m, 0, 1, 0);
+  gr_mesh_add_face(m, 0, 1, 2);
+  CHECK(gr_bvh_new(m, &e) == NULL && e.code == GR_EGEOM, "NaN vertex: code %d", e.code);
+  CHECK(strstr(e.msg, "vertex 1") != NULL, "message '%s'", e.msg);
+  gr_bvh_free(NULL);
+  gr_mesh_free(m);
+}
+
+/* the cylinder x^2 + y^2 = 9 as a network offset */
+static gr_field *cylinder_offset(int side, const char *texpr, int mode, gr_err *e) {
+  gr_field *c = gr_field_expr("sqrt(x^2+y^2)-3", e);
+  if (!c) return NULL;
+  gr_offset_opts o = gr_offset_defaults();
+  o.surface = c;
+  o.cell = 10;
+  for (int a = 0; a < 2; a++) { o.box_lo[a] = -5; o.box_hi[a] = 5; }
+  o.box_lo[2] = -1; o.box_hi[2] = 1;
+  o.res = 40;
+  o.kind = GR_OFFSET_NETWORK;
+  o.side = side;
+  o.mode = mode;
+  o.thickness = 1;
+  o.thickness_expr = texpr;
+  gr_field *g = gr_offset_field_new(&o, e);
+  gr_field_free(c);
+  return g;
+}
+
+static double eval1(const gr_field *f, double x, double y, double z) {
+  gr_err e;
+  double v = NAN;
+  if (gr_field_eval(f, 1, &x, &y, &z, &v, &e)) return NAN;
+  return v;
+}
+
+TEST(cylinder_network) {
+  gr_err e;
+  for (int mode = 0; mode < 2; mode++) {
+    gr_field *gm = cylinder_offset(-1, NULL, mode, &e);
+    CHECK(gm != NULL, "%s", e.msg);
+    gr_field *gp = cylinder_offset(+1, NULL, mode, &e);
+    CHECK(gp != NULL, "%s", e.msg);
+    if (!gm || !gp) { gr_field_free(gm); gr_field_free(gp); return; }
+    /* exact mode refines q onto the cylinder only near g = 0; elsewhere
+     * (and in mesh mode) the mesh chord error (spacing 0.25 mm) remains */
+    double tol = mode == GR_DIST_EXACT ? 1e-6 : 0.01, far = 0.01;
+    for (int i = 0; i < 24; i++) {
+      double th = 2 * PI * i / 24 + 0.1, z = -0.8 + 1.6 * i / 23, c = cos(th), s = sin(th);
+      /* side -1 grows phi < 0: g = sd - 1, zero at radius 4 */
+      CHECK_NEAR(eval1(gm, 4 * c, 4 * s, z), 0, tol);
+      CHECK_NEAR(eval1(gm, 3.5 * c, 3.5 * s, z), -0.5, far);
+      CHECK(eval1(gm, 1 * c, 1 * s, z) < 0, "inside at r=1");
+      CHECK(eval1(gm, 2.5 * c, 2.5 * s, z) < 0, "inside at r=2.5");
+      CHECK(eval1(gm, 4.5 * c, 4.5 * s, z) > 0, "outside at r=4.5");
+      /* side +1 grows phi > 0: g = -sd - 1, zero at radius 2 */
+      CHECK_NEAR(eval1(gp, 2 * c, 2 * s, z), 0, tol);
+      CHECK_NEAR(eval1(gp, 2.5 * c, 2.5 * s, z), -0.5, far);
+      CHECK(eval1(gp, 1.5 * c, 1.5 * s, z) > 0, "side +1 r=1.5 outside the network");
+      CHECK(eval1(gp, 0.5 * c, 0.5 * s, z) > 0, "side +1 r=0.5 outside the network");
+      CHECK(eval1(gp, 3.5 * c, 3.5 * s, z) < 0, "side +1 r=3.5 inside");
+      CHECK(eval1(gp, 4.8 * c, 4.8 * s, z) < 0, "side +1 r=4.8 inside");
+    }
+    gr_field_free(gm);
+    gr_field_free(gp);
+  }
+  /* the paper's eq. (5): T = x/6 + 1 at the closest point q = 3 (cos, sin);
+   * the offset surface lies at radius 3 + T(q) */
+  gr_field *g = cylinder_offset(-1, "x/6+1", GR_DIST_EXACT, &e);
+  CHECK(g != NULL, "%s", e.msg);
+  if (!g) return;
+  for (int i = 0; i < 36; i++) {
+    double th = 2 * PI * i / 36 + 0.05, c = cos(th), s = sin(th);
+    double T = 3 * c / 6 + 1, r = 3 + T;
+    CHECK_NEAR(eval1(g, r * c, r * s, 0.3), 0, 1e-6);
+    CHECK_NEAR(eval1(g, (r - 0.2) * c, (r - 0.2) * s, 0.3), -0.2, 0.01);
+    CHECK(eval1(g, (r + 0.1) * c, (r + 0.1) * s, 0.3) > 0, "outside at theta %g", th);
+  }
+  gr_field_free(g);
+}
+
+/* ---- the graded P sheet, L = 2, origin 0 ---- */
+static const double PL = 2;
+/* phi, gradient and (diagonal) Hessian, written from SPEC's definition
+ * X = 2 pi / L (x - L/2), phi = cos X + cos Y + cos Z */
+static double p_phi(const double x[3], double g[3], double hd[3]) {
+  double k = 2 * PI / PL, v = 0;
+  for (int a = 0; a < 3; a++) {
+    double X = k * (x[a] - PL / 2);
+    v += cos(X);
+    if (g) g[a] = -k * sin(X);
+    if (hd) hd[a] = -k * k * cos(X);
+  }
+  return v;
+}
+static double p_thick(const double q[3]) {
+  double c = fmod(q[2], PL);
+  if (c < 0) c += PL;
+  double w = 2 * c / PL - 1;
+  return 0.1 * (2 * sin(PI * (w + 1) / 4) + 1);
+}
+
+/* Solve 4x4 A x = b by Gaussian elimination with partial pivoting. */
+static int solve4(double A[4][4], double b[4], double x[4]) {
+  for (int c = 0; c < 4; c++) {
+    int piv = c;
+    for (int r = c + 1; r < 4; r++) if (fabs(A[r][c]) > fabs(A[piv][c])) piv = r;
+    if (!(fabs(A[piv][c]) > 1e-300)) return 1;
+    for (int k = 0; k < 4; k++) { double t = A[c][k]; A[c][k] = A[piv][k]; A[piv][k] = t; }
+    double t = b[c]; b[c] = b[piv]; b[piv] = t;
+    for (int r = c + 1; r < 4; r++) {
+      double f = A[r][c] / A[c][c];
+      for (int k = c; k < 4; k++) A[r][k] -= f * A[c][k];
+      b[r] -= f * b[c];
+    }
+  }
+  for (int r = 3; r >= 0; r--) {
+    double s = b[r];
+    for (int k = r + 1; k < 4; k++) s -= A[r][k] * x[k];
+    x[r] = s / A[r][r];
+  }
+  return 0;
+}
+
+/* Independent closest point of the P surface to p: bisect phi = 0 on a
+ * dense grid of segments in a cube of half-side h around p, keep the
+ * nearest crossing, then solve the Lagrange conditions q - p + lam grad
+ * phi(q) = 0, phi(q) = 0 by Newton's method. Returns the distance. */
+static double p_closest(const double p[3], double h, double q[3]) {
+  enum { N = 24 };
+  double best = INFINITY;
+  for (int i = 0; i <= N; i++)
+    for (int j = 0; j <= N; j++)
+      for (int k = 0; k <= N; k++)
+        for (int ax = 0; ax < 3; ax++) {
+          int id[3] = {i, j, k};
+          if (id[ax] == N) continue;
+          double a[3], b[3];
+          for (int t = 0; t < 3; t++) {
+            a[t] = p[t] - h + 2 * h * id[t] / N;
+            b[t] = a[t] + (t == ax ? 2 * h / N : 0);
+          }
+          double fa = p_phi(a, NULL, NULL), fb = p_phi(b, NULL, NULL);
+          if ((fa < 0) == (fb < 0)) continue;
+          for (int it = 0; it < 40; it++) {
+            double m[3] = {0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1]), 0.5 * (a[2] + b[2])};
+            double fm = p_phi(m, NULL, NULL);
+            if ((fm < 0) == (fa < 0)) { memcpy(a, m, sizeof m); fa = fm; } else memcpy(b, m, sizeof m);
+          }
+          double d = dist3(p, a);
+          if (d < best) { best = d; memcpy(q, a, sizeof a); }
+        }
+  if (!isfinite(best)) return NAN;
+  double g[3], hd[3];
+  p_phi(q, g, NULL);
+  double g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
+  double lam = -((q[0] - p[0]) * g[0] + (q[1] - p[1]) * g[1] + (q[2] - p[2]) * g[2]) / g2;
+  for (int it = 0; it < 30; it++) {
+    double v = p_phi(q, g, hd);
+    double A[4][4] = {{0}}, r[4], dx[4];
+    for (int a = 0; a < 3; a++) {
+      r[a] = -(q[a] - p[a] + lam * g[a]);
+      A[a][a] = 1 + lam * hd[a];
+      A[a][3] = g[a];
+      A[3][a] = g[a];
+    }
+    r[3] = -v;
+    if (solve4(A, r, dx)) break;
+    for (int a = 0; a < 3; a++) q[a] += dx[a];
+    lam += dx[3];
+    if (fabs(dx[0]) + fabs(dx[1]) + fabs(dx[2]) < 1e-15) break;
+  }
+  return dist3(p, q);
+}
+
+/* Points near the graded sheet's offset surface: surface points s (found
+ * on random segments), moved along the normal by T(s) + a little. */
+static int sheet_points(int n, double *px, double *py, double *pz) {
+  unsigned long long s = 23;
+  int k = 0;
+  while (k < n) {
+    double a[3] = {2 * rnd(&s), 2 * rnd(&s), 0.55 + 0.9 * rnd(&s)}, b[3];
+    double fa = p_phi(a, NULL, NULL);
+    int found = 0;
+    for (int t = 1; t <= 20 && !found; t++) {
+      double dir = 2 * PI * rnd(&s);
+      b[0] = a[0] + 0.4 * cos(dir); b[1] = a[1] + 0.4 * sin(dir); b[2] = a[2];
+      if ((p_phi(b, NULL, NULL) < 0) != (fa < 0)) found = 1;
+    }
+    if (!found) continue;
+    for (int it = 0; it < 50; it++) {
+      double m[3] = {0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1]), 0.5 * (a[2] + b[2])};
+      double fm = p_phi(m, NULL, NULL);
+      if ((fm < 0) == (fa < 0)) { memcpy(a, m, sizeof m); fa = fm; } else memcpy(b, m, sizeof m);
+    }
+    double g[3];
+    p_phi(a, g, NULL);
+    double gn = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+    if (!(gn > 1)) continue; /* avoid the flat spots of phi */
+    double sign = (k % 2) ? 1 : -1, off = p_thick(a) + 0.004 * (rnd(&s) - 0.5);
+    px[k] = a[0] + sign * off * g[0] / gn;
+    py[k] = a[1] + sign * off * g[1] / gn;
+    pz[k] = a[2] + sign * off * g[2] / gn;
+    if (pz[k] < 0.3 || pz[k] > 1.7) continue; /* T jumps at z = 0, 2 */
+    k++;
+  }
+  return k;
+}
+
+static gr_field *p_sheet(int res, int mode, gr_err *e) {
+  gr_field *phi = gr_field_tpms("primitive", PL, NULL, 0, e);
+  if (!phi) return NULL;
+  gr_offset_opts o = gr_offset_defaults();
+  o.surface = phi;
+  o.cell = PL;
+  for (int a = 0; a < 3; a++) { o.box_lo[a] = 0; o.box_hi[a] = PL; }
+  o.res = res;
+  o.mode = mode;
+  o.thickness_expr = "0.1*(2*sin(pi*(w+1)/4)+1)";
+  gr_field *g = gr_offset_field_new(&o, e);
+  gr_field_free(phi);
+  return g;
+}
+
+TEST(graded_p_sheet) {
+  gr_err e;
+  enum { NP = 40 };
+  double px[NP], py[NP], pz[NP], want[NP], got[NP];
+  sheet_points(NP, px, py, pz);
+  /* the test's P formula agrees with the engine's TPMS field */
+  gr_field *phi = gr_field_tpms("primitive", PL, NULL, 0, &e);
+  for (int i = 0; i < NP && phi; i++) {
+    double p[3] = {px[i], py[i], pz[i]};
+    CHECK_NEAR(eval1(phi, px[i], py[i], pz[i]), p_phi(p, NULL, NULL), 1e-12);
+  }
+  gr_field_free(phi);
+  for (int i = 0; i < NP; i++) {
+    double p[3] = {px[i], py[i], pz[i]}, q[3];
+    double d = p_closest(p, 0.45, q);
+    want[i] = d - p_thick(q);
+  }
+  gr_field *g = p_sheet(40, GR_DIST_EXACT, &e);
+  CHECK(g != NULL, "%s", e.msg);
+  if (!g) return;
+  CHECK(gr_field_eval(g, NP, px, py, pz, got, &e) == GR_OK, "%s", e.msg);
+  double emax = 0;
+  for (int i = 0; i < NP; i++) emax = fmax(emax, fabs(got[i] - want[i]));
+  printf("    exact-mode max |g - g_ref|: %.3g mm over %d points\n", emax, (int)NP);
+  for (int i = 0; i < NP; i++) {
+    CHECK(fabs(want[i]) < 0.01, "point %d not near the offset surface: %g", i, want[i]);
+    CHECK_NEAR(got[i], want[i], 1e-4);
+  }
+  gr_field_free(g);
+  /* mesh mode: the error shrinks as the mesh is refined */
+  double err[3];
+  int res[3] = {20, 40, 80};
+  for (int r = 0; r < 3; r++) {
+    err[r] = INFINITY;
+    g = p_sheet(res[r], GR_DIST_MESH, &e);
+    CHECK(g != NULL, "%s", e.msg);
+    if (!g) continue;
+    CHECK(gr_field_eval(g, NP, px, py, pz, got, &e) == GR_OK, "%s", e.msg);
+    err[r] = 0;
+    for (int i = 0; i < NP; i++) err[r] = fmax(err[r], fabs(got[i] - want[i]));
+    gr_field_free(g);
+  }
+  printf("    mesh-mode max |g - g_ref|: %.3g, %.3g, %.3g mm (res 20, 40, 80)\n", err[0], err[1], err[2]);
+  CHECK(err[1] < err[0] && err[2] < err[1], "mesh errors %g %g %g (res 20, 40, 80)", err[0], err[1], err[2]);
+  CHECK(err[2] < 0.01, "mesh error at res 80: %g", err[2]);
+}
+
+TEST(thickness_errors) {
+  gr_err e;
+  gr_field *phi = gr_field_tpms("primitive", PL, NULL, 0, &e);
+  gr_offset_opts o = gr_offset_defaults();
+  o.surface = phi;
+  o.cell = PL;
+  for (int a = 0; a < 3; a++) { o.box_lo[a] = 0; o.box_hi[a] = PL; }
+  o.res = 10;
+  o.thickness = -0.1;
+  CHECK(gr_offset_field_new(&o, &e) == NULL && e.code == GR_EARG, "negative accepted");
+  CHECK(strstr(e.msg, "thickness") && strstr(e.msg, "-0.1"), "message '%s'", e.msg);
+  o.thickness = 1.5;
+  CHECK(gr_offset_field_new(&o, &e) == NULL && e.code == GR_EARG, "over L/2 accepted");
+  CHECK(strstr(e.msg, "thickness") && strstr(e.msg, "1.5"), "message '%s'", e.msg);
+  o.thickness = 0.1;
+  o.thickness_expr = "0.1*(2*sin(";
+  CHECK(gr_offset_field_new(&o, &e) == NULL && e.code == GR_EARG, "bad expression accepted");
+  CHECK(strstr(e.msg, "thickness") != NULL, "message '%s'", e.msg);
+  o.thickness_expr = "0.1*(1+q)";
+  CHECK(gr_offset_field_new(&o, &e) == NULL && e.code == GR_EARG, "unknown variable accepted");
+  CHECK(strstr(e.msg, "thickness") != NULL, "message '%s'", e.msg);
+  o.thickness_expr = "0.3*u";  /* negative where u < 0 */
+  CHECK(gr_offset_field_new(&o, &e) == NULL && e.code == GR_EARG, "negative expression accepted");
+  CHECK(strstr(e.msg, "thickness") && strstr(e.msg, "x="), "message '%s'", e.msg);
+  o.thickness_expr = "0.5+w*w";  /* over L/2 = 1 near the cell faces */
+  CHECK(gr_offset_field_new(&o, &e) == NULL && e.code == GR_EARG, "large expression accepted");
+  CHECK(strstr(e.msg, "L/2") != NULL, "message '%s'", e.msg);
+  o.thickness_expr = NULL;
+  gr_field *g = gr_offset_field_new(&o, &e);
+  CHECK(g != NULL, "valid options refused: %s", e.msg);
+  gr_field_free(g);
+  gr_field_free(phi);
+}
+
+int main(void) {
+  RUN(triangle_vs_sampling);
+  RUN(bvh_sphere);
+  RUN(bvh_errors);
+  RUN(cylinder_network);
+  RUN(graded_p_sheet);
+  RUN(thickness_errors);
+  DONE();
+}
