@@ -208,7 +208,7 @@ static int read_ascii(const char *path, const char *t, size_t len, size_t pos, g
       if (rc) break;
       if (q < t + end && *q == ',') { rc = gr_fail(e, GR_EPARSE, "%s:%d: more coordinates than the count %ld", path, line, cnt); break; }
       if (!have) { rc = gr_fail(e, GR_EPARSE, "%s:%d: geometry before the first $$LAYER", path, line); break; }
-      if (layer_block(l, poly ? (dir == 2 ? GR_OPEN : GR_CLOSED) : GR_SEGMENTS, (int)id, (int)dir, xy, npts))
+      if (layer_block(l, poly ? (dir == 2 ? GR_OPEN : GR_CLOSED) : GR_SEGMENTS, (int)id, poly ? (int)dir : 2, xy, npts))
         rc = gr_fail(e, GR_EMEM, "out of memory");
     } else if (n >= 13 && !strncmp(s, "$$GEOMETRYEND", 13)) {
       break;
@@ -258,7 +258,7 @@ static int read_binary(const char *path, const unsigned char *t, size_t len, siz
       if (gr_grow(&xy, &cap, npts + 1, 2 * sizeof(double))) { rc = gr_fail(e, GR_EMEM, "out of memory"); break; }
       for (size_t k = 0; k < 2 * npts; k++) xy[k] = rd_f32(t + pos + 4 * k) * h->units;
       pos += 8 * npts;
-      if (layer_block(l, poly ? (dir == 2 ? GR_OPEN : GR_CLOSED) : GR_SEGMENTS, id, dir, xy, npts))
+      if (layer_block(l, poly ? (dir == 2 ? GR_OPEN : GR_CLOSED) : GR_SEGMENTS, id, poly ? dir : 2, xy, npts))
         rc = gr_fail(e, GR_EMEM, "out of memory");
     } else {
       rc = gr_fail(e, GR_EPARSE, "%s: byte %zu: unknown command %u", path, at, cmd);

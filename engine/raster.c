@@ -51,7 +51,7 @@ int gr_png_layer(const char *path, const gr_layer *l, const gr_png_opts *o, gr_e
   double span = fmax(fmax(hi[0] - lo[0], hi[1] - lo[1]), 1e-3), pad = 0.05 * span;
   lo[0] -= pad; lo[1] -= pad; hi[0] += pad; hi[1] += pad;
   double s = W / (hi[0] - lo[0]);
-  int H = (int)ceil((hi[1] - lo[1]) * s);
+  int H = (int)ceil((hi[1] - lo[1]) * s - 1e-6);
   if ((double)W * H > 1e8) return gr_fail(e, GR_EARG, "picture of %d x %d pixels is too large", W, H);
   canvas cv = {W, H, malloc((size_t)W * H * 3)};
   if (!cv.rgb) return gr_fail(e, GR_EMEM, "out of memory for a %d x %d picture", W, H);

@@ -1,0 +1,123 @@
+/* CLI 2.0: ASCII and binary round trips within float32 / print precision,
+ * closed polylines repeat their first point, header fields, and errors that
+ * name the line or byte of malformed and truncated files. */
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+#include "check.h"
+#include "cli.h"
+
+typedef struct got { gr_layer *l[8]; int n; } got;
+
+static int keep(void *ud, const gr_layer *l, gr_err *e) {
+  got *g = ud;
+  (void)e;
+  if (g->n < 8) {
+    g->l[g->n] = gr_layer_new(l->z);
+    gr_layer_append(g->l[g->n], l, 0, 0);
+    g->n++;
+  }
+  return GR_OK;
+}
+
+static gr_layer *sample_layer(double z) {
+  gr_layer *l = gr_layer_new(z);
+  double ring[] = {1.25, 1.5, 38.123456, 1.5, 38.123456, 39.987654, 1.25, 1.5};
+  gr_layer_add(l, GR_CLOSED, GR_CONTOUR, 0, 1, ring, 4);
+  double open[] = {0.5, 0.5, 0.75, 0.8, 1.0, 0.5};
+  gr_layer_add(l, GR_OPEN, GR_CONTOUR, 1, 2, open, 3);
+  gr_layer_add_segment(l, GR_HATCH, 1, 2, 2, 30, 2);
+  gr_layer_add_segment(l, GR_HATCH, 1, 30, 2.05, 2, 2.05);
+  return l;
+}
+
+static void roundtrip(int binary) {
+  char path[] = "/tmp/gradus_test_cliXXXXXX";
+  int fd = mkstemp(path);
+  close(fd);
+  gr_cli_header h = gr_cli_header_defaults();
+  h.binary = binary;
+  h.layers = 2;
+  h.nlasers = 2;
+  h.hi[0] = h.hi[1] = 40;
+  h.hi[2] = 0.08;
+  gr_err e;
+  gr_err_clear(&e);
+  gr_cli_writer *w = gr_cli_open(path, &h, &e);
+  CHECK(w != NULL, "%s", e.msg);
+  gr_layer *a = sample_layer(0.04), *b = sample_layer(0.08);
+  CHECK(gr_cli_write_layer(w, a, &e) == GR_OK && gr_cli_write_layer(w, b, &e) == GR_OK, "%s", e.msg);
+  CHECK(gr_cli_close(w, 1, &e) == GR_OK, "%s", e.msg);
+  /* header text */
+  FILE *f = fopen(path, "rb");
+  char head[1024] = {0};
+  size_t n = fread(head, 1, sizeof head - 1, f);
+  fclose(f);
+  head[n] = 0;
+  CHECK(strstr(head, "$$HEADERSTART") == head, "starts with $$HEADERSTART");
+  CHECK(strstr(head, binary ? "$$BINARY" : "$$ASCII") != NULL, "format line");
+  CHECK(strstr(head, "$$VERSION/200") && strstr(head, "$$UNITS/0.001") && strstr(head, "$$LAYERS/2"), "version, units, layers");
+  CHECK(strstr(head, "$$LABEL/5,laser2-hatch") != NULL, "labels for laser 2");
+  if (!binary) CHECK(strstr(head, "$$POLYLINE/1,1,4,1250.0000,1500.0000") != NULL, "closed polyline repeats its first point: n = 4");
+  got g;
+  memset(&g, 0, sizeof g);
+  gr_cli_header hr;
+  CHECK(gr_cli_read(path, &hr, keep, &g, &e) == GR_OK, "%s", e.msg);
+  CHECK(g.n == 2, "layers read %d", g.n);
+  CHECK(hr.binary == binary && hr.layers == 2, "header read back");
+  double tol = binary ? 4e-6 : 1e-7; /* float32 of um values; %.4f of um */
+  for (int k = 0; k < g.n; k++) {
+    const gr_layer *x = k ? b : a, *y = g.l[k];
+    CHECK_NEAR(y->z, x->z, 1e-9);
+    CHECK(y->nb == x->nb && y->npts == x->npts, "blocks %zu/%zu points %zu/%zu", y->nb, x->nb, y->npts, x->npts);
+    for (size_t i = 0; i < x->nb && i < y->nb; i++)
+      CHECK(y->b[i].shape == x->b[i].shape && y->b[i].kind == x->b[i].kind && y->b[i].laser == x->b[i].laser &&
+                y->b[i].dir == x->b[i].dir, "block %zu attributes", i);
+    for (size_t i = 0; i < 2 * x->npts && x->npts == y->npts; i++) CHECK_NEAR(y->xy[i], x->xy[i], tol);
+  }
+  for (int k = 0; k < g.n; k++) gr_layer_free(g.l[k]);
+  /* truncated: cut 5 bytes */
+  f = fopen(path, "rb");
+  fseek(f, 0, SEEK_END);
+  long size = ftell(f);
+  fclose(f);
+  CHECK(truncate(path, size - (binary ? 5 : 30)) == 0, "truncate");
+  memset(&g, 0, sizeof g);
+  int rc = gr_cli_read(path, &hr, keep, &g, &e);
+  for (int k = 0; k < g.n; k++) gr_layer_free(g.l[k]);
+  CHECK(rc == GR_EPARSE, "truncated file refused (rc %d)", rc);
+  CHECK(strstr(e.msg, path) != NULL && strstr(e.msg, binary ? "byte" : ":"), "names the file and place: %s", e.msg);
+  gr_layer_free(a);
+  gr_layer_free(b);
+  remove(path);
+}
+
+TEST(ascii_roundtrip) { roundtrip(0); }
+TEST(binary_roundtrip) { roundtrip(1); }
+
+TEST(malformed_ascii_names_the_line) {
+  char path[] = "/tmp/gradus_test_cliXXXXXX";
+  int fd = mkstemp(path);
+  const char *t = "$$HEADERSTART\n$$ASCII\n$$UNITS/1\n$$HEADEREND\n$$GEOMETRYSTART\n$$LAYER/0.04\n$$HATCHES/1,2,0,0,1,1,2,2\n$$GEOMETRYEND\n";
+  CHECK(write(fd, t, strlen(t)) == (ssize_t)strlen(t), "write");
+  close(fd);
+  got g;
+  memset(&g, 0, sizeof g);
+  gr_cli_header h;
+  gr_err e;
+  gr_err_clear(&e);
+  int rc = gr_cli_read(path, &h, keep, &g, &e);
+  for (int k = 0; k < g.n; k++) gr_layer_free(g.l[k]);
+  CHECK(rc == GR_EPARSE && strstr(e.msg, ":7:"), "hatch count mismatch on line 7: %s", e.msg);
+  remove(path);
+  gr_cli_header hd = gr_cli_header_defaults();
+  CHECK(gr_cli_open("/nonexistent_dir/x.cli", &hd, &e) == NULL && strstr(e.msg, "/nonexistent_dir/x.cli"), "unwritable path named");
+  CHECK(access("/nonexistent_dir/x.cli", F_OK) != 0, "nothing left");
+}
+
+int main(void) {
+  RUN(ascii_roundtrip);
+  RUN(binary_roundtrip);
+  RUN(malformed_ascii_names_the_line);
+  DONE();
+}
