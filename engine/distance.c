@@ -255,10 +255,13 @@ static int thick(const offset *f, const gr_expr *x, size_t n, const double *qx, 
 
 /* Refine q onto phi = 0 as the closest point to p: alternate a Newton
  * projection onto the surface with a move to the foot of p on the tangent
- * plane. Keeps the mesh point when it does not converge. */
+ * plane. Keeps the mesh point when it does not converge. The alternation
+ * converges linearly, slowly where d times the curvature nears 1 (P
+ * necks): 12 rounds left 1e-5 mm there, 40 reach 1e-9 mm (most points stop
+ * after a few rounds). */
 static void exact_refine(const offset *f, const double p[3], double q[3]) {
   double x[3] = {q[0], q[1], q[2]};
-  for (int it = 0; it < 12; it++) {
+  for (int it = 0; it < 40; it++) {
     double v, gx, gy, gz;
     gr_err e;
     for (int k = 0; k < 3; k++) {
@@ -364,6 +367,42 @@ static int offset_eval(void *ud, size_t n, const double *x, const double *y, con
         out[s + i] = (f->side > 0 ? -sd : sd) - tt[q];
       }
     }
+  }
+  return GR_OK;
+}
+
+/* Gradient of g: the unit vector from q to p (times the sign of sd for
+ * networks), i.e. the gradient of the distance; T's own variation along the
+ * surface is neglected (it changes g's slope by |grad T| << 1, which only
+ * slows root finding slightly, never moves a root). */
+static int offset_grad(void *ud, size_t n, const double *x, const double *y, const double *z,
+                       double *gx, double *gy, double *gz, gr_err *e) {
+  offset *f = ud;
+  for (size_t i = 0; i < n; i++) {
+    double p[3] = {x[i], y[i], z[i]}, ph;
+    if (gr_field_eval(f->phi, 1, &p[0], &p[1], &p[2], &ph, e)) return e->code;
+    gr_hit h;
+    gr_bvh_closest(f->bvh, p, INFINITY, &h);
+    double v[3] = {0, 0, 0}, dd = 0;
+    if (h.tri >= 0) {
+      if (f->mode == GR_DIST_EXACT) exact_refine(f, p, h.q);
+      for (int a = 0; a < 3; a++) v[a] = p[a] - h.q[a];
+      dd = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    }
+    if (dd < 1e-9) { /* on H: the surface normal, oriented to phi > 0 */
+      double g[3];
+      if (gr_field_grad(f->phi, 1, &p[0], &p[1], &p[2], &g[0], &g[1], &g[2], e)) return e->code;
+      double gn = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+      for (int a = 0; a < 3; a++) v[a] = gn > 0 ? g[a] / gn : 0;
+      if (f->kind == GR_OFFSET_SHEET) { gx[i] = gy[i] = gz[i] = 0; continue; }
+    } else {
+      for (int a = 0; a < 3; a++) v[a] /= dd;
+      if (f->kind == GR_OFFSET_NETWORK && ph < 0) for (int a = 0; a < 3; a++) v[a] = -v[a];
+    }
+    double sgn = (f->kind == GR_OFFSET_NETWORK && f->side > 0) ? -1 : 1;
+    gx[i] = sgn * v[0];
+    gy[i] = sgn * v[1];
+    gz[i] = sgn * v[2];
   }
   return GR_OK;
 }
@@ -484,7 +523,7 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   f->maxt = 1.2 * maxt + 2 * o->cell / o->res;
   f->tnear = 0.5 * maxt;
   f->refine_band = 0.25 * o->cell / o->res; /* a quarter mesh spacing: far above H's error */
-  gr_field *g = gr_field_callback(offset_eval, NULL, f, offset_free, 1, o->kind == GR_OFFSET_SHEET ? "sheet offset" : "network offset");
+  gr_field *g = gr_field_callback(offset_eval, offset_grad, f, offset_free, 1, o->kind == GR_OFFSET_SHEET ? "sheet offset" : "network offset");
   if (!g) { offset_free(f); return gr_fail(e, GR_EMEM, "out of memory"), NULL; }
   return g;
 }

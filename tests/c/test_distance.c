@@ -363,10 +363,18 @@ TEST(graded_p_sheet) {
   CHECK(gr_field_eval(g, NP, px, py, pz, got, &e) == GR_OK, "%s", e.msg);
   double emax = 0;
   for (int i = 0; i < NP; i++) emax = fmax(emax, fabs(got[i] - want[i]));
-  printf("    exact-mode max |g - g_ref|: %.3g mm over %d points\n", emax, (int)NP);
+  printf("  info: exact-mode max |g - g_ref|: %.3g mm over %d points\n", emax, (int)NP);
   for (int i = 0; i < NP; i++) {
     CHECK(fabs(want[i]) < 0.01, "point %d not near the offset surface: %g", i, want[i]);
-    CHECK_NEAR(got[i], want[i], 1e-4);
+    CHECK_NEAR(got[i], want[i], 1e-6); /* the brief asks 1e-4 mm; 1e-9 is reached */
+  }
+  /* beyond the narrow band the field keeps a positive lower bound of g:
+   * the cell centre and corner lie 0.8 mm or more from H */
+  for (int c = 0; c < 2; c++) {
+    double p[3] = {c ? 1.0 : 0.05, c ? 1.0 : 0.05, c ? 1.0 : 0.05}, q[3];
+    double ref = p_closest(p, 1.0, q) - p_thick(q), v = eval1(g, p[0], p[1], p[2]);
+    CHECK(ref > 0.4, "reference g %g", ref);
+    CHECK(v > 0 && v <= ref + 1e-9, "far point %d: g %g, true %g", c, v, ref);
   }
   gr_field_free(g);
   /* mesh mode: the error shrinks as the mesh is refined */
@@ -382,7 +390,7 @@ TEST(graded_p_sheet) {
     for (int i = 0; i < NP; i++) err[r] = fmax(err[r], fabs(got[i] - want[i]));
     gr_field_free(g);
   }
-  printf("    mesh-mode max |g - g_ref|: %.3g, %.3g, %.3g mm (res 20, 40, 80)\n", err[0], err[1], err[2]);
+  printf("  info: mesh-mode max |g - g_ref|: %.3g, %.3g, %.3g mm (res 20, 40, 80)\n", err[0], err[1], err[2]);
   CHECK(err[1] < err[0] && err[2] < err[1], "mesh errors %g %g %g (res 20, 40, 80)", err[0], err[1], err[2]);
   CHECK(err[2] < 0.01, "mesh error at res 80: %g", err[2]);
 }
