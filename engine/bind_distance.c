@@ -76,6 +76,11 @@ static int l_offset(lua_State *L) {
     lua_pushvalue(L, -2);
     lua_setiuservalue(L, -2, 1);
   }
+  const char *w = gr_offset_warning(g);
+  if (w[0]) {
+    lua_pushstring(L, w);
+    return 2;
+  }
   return 1;
 }
 

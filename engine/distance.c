@@ -212,6 +212,7 @@ typedef struct offset {
   double tnear;       /* typical T, centre of the refinement band */
   double refine_band; /* refine q where | d - tnear | < this */
   long npts, nquery, nrefine, ncalls; /* statistics (GRADUS_DEBUG) */
+  char warning[256];  /* offsets of neighbouring sheet parts touch (where), or "" */
 } offset;
 
 static void offset_free(void *ud) {
@@ -407,6 +408,11 @@ static int offset_grad(void *ud, size_t n, const double *x, const double *y, con
   return GR_OK;
 }
 
+const char *gr_offset_warning(const gr_field *f) {
+  const offset *o = gr_field_callback_data(f, offset_eval);
+  return o ? o->warning : "";
+}
+
 gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   if (!o->surface) return gr_fail(e, GR_EARG, "bad option 'surface' (a field is needed)"), NULL;
   if (!(o->cell > 0)) return gr_fail(e, GR_EARG, "bad option 'cell' (must be > 0, got %g)", o->cell), NULL;
@@ -517,6 +523,30 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
         return NULL;
       }
       if (t[i] > maxt) maxt = t[i];
+    }
+  }
+  /* Touching offsets: from each vertex v of H, step along the normal to the
+   * offset surface (distance T(v)); if that point is as close to another part
+   * of H (one whose closest point is more than 2 T(v) from v), the offset
+   * sheets of the two parts meet there. Sheets only. */
+  if (f->kind == GR_OFFSET_SHEET) {
+    for (size_t i = 0; i < nv && !f->warning[0]; i += 7) {
+      double tv = (f->t || f->tin) ? t[i] : f->tconst;
+      double v[3] = {vx[i], vy[i], vz[i]}, g[3];
+      gr_err e2;
+      if (gr_field_grad(f->phi, 1, &v[0], &v[1], &v[2], &g[0], &g[1], &g[2], &e2)) continue;
+      double gn = sqrt(dot3(g, g));
+      if (!(gn > 0) || !(tv > 0)) continue;
+      for (int sgn = -1; sgn <= 1 && !f->warning[0]; sgn += 2) {
+        double p[3];
+        for (int a = 0; a < 3; a++) p[a] = v[a] + sgn * tv * g[a] / gn;
+        gr_hit h;
+        gr_bvh_closest(f->bvh, p, INFINITY, &h);
+        double dq = sqrt((h.q[0] - v[0]) * (h.q[0] - v[0]) + (h.q[1] - v[1]) * (h.q[1] - v[1]) + (h.q[2] - v[2]) * (h.q[2] - v[2]));
+        if (h.tri >= 0 && dq > tv && h.dist < 0.95 * tv)
+          snprintf(f->warning, sizeof f->warning,
+                   "thickness %.4g mm: offset sheets of neighbouring parts touch near x=%.4g, y=%.4g, z=%.4g", tv, p[0], p[1], p[2]);
+      }
     }
   }
   free(buf);

@@ -52,4 +52,9 @@ gr_offset_opts gr_offset_defaults(void);
  * point. */
 gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e);
 
+/* Warning text of an offset field ("" when none, or when f is not one): the
+ * thickness is large enough that offset sheets of neighbouring parts touch,
+ * with where. */
+const char *gr_offset_warning(const gr_field *f);
+
 #endif

@@ -346,6 +346,10 @@ void gr_field_free(gr_field *f) {
 }
 
 int gr_field_threadsafe(const gr_field *f) { return f ? f->threadsafe : 1; }
+
+void *gr_field_callback_data(const gr_field *f, gr_field_fn fn) {
+  return (f && f->kind == K_CALLBACK && f->fn == fn) ? f->ud : NULL;
+}
 double gr_field_lipschitz(const gr_field *f) { return f ? f->lip : INFINITY; }
 const char *gr_field_describe(const gr_field *f) { return f ? f->desc : "(null)"; }
 

@@ -64,6 +64,9 @@ gr_field *gr_field_scale(gr_field *a, double s);              /* s*a(p/s) */
 gr_field *gr_field_ref(gr_field *f);   /* returns f */
 void gr_field_free(gr_field *f);       /* drops one reference; NULL is fine */
 int gr_field_threadsafe(const gr_field *f);
+/* The user data of a callback field made with `fn`, or NULL (lets the
+ * owner of a callback kind reach its own state, e.g. offset warnings). */
+void *gr_field_callback_data(const gr_field *f, gr_field_fn fn);
 /* Upper bound on |grad phi| (INFINITY if unknown): d(p) >= |phi(p)|/K. */
 double gr_field_lipschitz(const gr_field *f);
 /* Short text such as "primitive(L=2, level=0)". */

@@ -1425,6 +1425,12 @@ static int prepare_item(gr_job *j, int item, void *arg_, gr_err *e) {
   if (rc) return rc;
   cl->field = voxel_field(j, cl->rep, cl->trimmed, e);
   if (!cl->field) return e->code ? e->code : GR_EMEM;
+  const char *w = gr_offset_warning(cl->field);
+  if (w[0]) {
+    pthread_mutex_lock(a->kbmu);
+    snprintf(j->warning, sizeof j->warning, "%s", w);
+    pthread_mutex_unlock(a->kbmu);
+  }
   cl->need = 1;
   return GR_OK;
 }

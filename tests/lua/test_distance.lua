@@ -80,4 +80,11 @@ t.test("closest point of a sphere mesh", function()
   t.ok(math.type(tri) == "integer" and tri >= 1 and tri <= nf, "triangle index 1-based")
 end)
 
+t.test("a thickness whose offset sheets touch is reported with where", function()
+  local _, w = gradus.distance.offset { surface = "primitive", cell = 2, thickness = 0.6, res = 30 }
+  t.ok(w and w:find("touch near x="), "warning for T = 0.6 in a 2 mm P cell: " .. tostring(w))
+  local _, w2 = gradus.distance.offset { surface = "primitive", cell = 2, thickness = 0.1, res = 30 }
+  t.eq(w2, nil, "no warning for T = 0.1")
+end)
+
 t.done()
