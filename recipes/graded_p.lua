@@ -9,6 +9,8 @@ if not (amp > 0) then error(("amp must be > 0 mm, got %g"):format(amp)) end
 p.thickness = ("%.17g*(2*sin(pi*(w+1)/4)+1)"):format(amp)
 p.cells = gradus.param("cells", "2,2,1")
 p.format = gradus.param("format", "binary")
+p.verify = gradus.param("verify", "10,25,40") -- pore, overmelt, contour deviation of these layers
 local st = lattice.run(p, gradus.output("out/graded_p.cli"))
-print(("amp %.3f mm, hatch %.3f mm: relative density %.3f, scan %.2f m, build %.1f s"):format(amp, p.hatch,
-  st.relative_density, (st.vectors.contour.length + st.vectors.hatch.length) / 1000, st.build_time_s))
+print(("amp %.3f mm, hatch %.3f mm: relative density %.3f, scan %.2f m, build %.1f s, pore %.3f%%, overmelt %.3f%%"):format(amp, p.hatch,
+  st.relative_density, (st.vectors.contour.length + st.vectors.hatch.length) / 1000, st.build_time_s,
+  100 * st.quality.pore_max, 100 * st.quality.overmelt_max))

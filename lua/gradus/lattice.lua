@@ -66,6 +66,7 @@ function M.params()
     layers = P("layers", ""),
     pictures = P("pictures", ""),
     split = P("split", false),
+    verify = P("verify", ""),
     min_length = P("min_length", 0.0),
   }
   return p
@@ -155,6 +156,13 @@ function M.run(p, out)
   local first, last = parse_range(p.layers, job:layers())
   local keep = {}
   for item in tostring(p.pictures):gmatch("[^,]+") do keep[#keep + 1] = tonumber(item) end
+  local checks = {}
+  for item in tostring(p.verify):gmatch("[^,]+") do
+    local g = tonumber(item)
+    if not g then error(("bad verify '%s': layer numbers a,b,c expected"):format(tostring(p.verify)), 2) end
+    checks[#checks + 1] = g
+    keep[#keep + 1] = g
+  end
   local kb = p.kb
   if kb == "" then kb = nil end
   if out then gradus.mkdir(gradus.dirname(out)) end
@@ -192,6 +200,34 @@ function M.run(p, out)
     end
   end
   st.pictures = pics
+  -- quality of the checked layers on voxel (0,0,k): the vectors against the
+  -- true section (the graded offset field sliced directly, 4x finer grid)
+  if #checks > 0 then
+    local L, d, b = p.cell, p.hatch, p.beam_offset >= 0 and p.beam_offset or p.hatch / 2
+    local q = { pore_max = 0, overmelt_max = 0, contour_dev_max_mm = 0, layers = {} }
+    local truths = {}
+    for _, g in ipairs(checks) do
+      if kept[g] then
+        local zm = origin[3] + g * p.layer - p.layer / 2
+        local k = math.floor((zm - origin[3]) / L)
+        if not truths[k] then
+          truths[k] = gradus.distance.offset { surface = p.surface, cell = L, origin = origin,
+            lo = { origin[1], origin[2], origin[3] + k * L }, hi = { origin[1] + L, origin[2] + L, origin[3] + (k + 1) * L },
+            res = p.res, thickness = tonumber(p.thickness) or p.thickness, kind = p.kind, mode = "exact", level = p.level }
+        end
+        local m = b + p.contours * d + 0.1
+        local sec = gradus.slice.field(truths[k], zm, { lo = { origin[1] - m, origin[2] - m },
+          hi = { origin[1] + L + m, origin[2] + L + m }, cell = d / 8 })
+        local r = gradus.hatch.verify(sec, kept[g], { track = d, pixel = d / 20, offset = b, spacing = d,
+          contours = math.max(1, p.contours), clip_lo = { origin[1], origin[2] }, clip_hi = { origin[1] + L, origin[2] + L } })
+        q.pore_max = math.max(q.pore_max, r.pore)
+        q.overmelt_max = math.max(q.overmelt_max, r.overmelt)
+        q.contour_dev_max_mm = math.max(q.contour_dev_max_mm, r.max_dev)
+        q.layers[#q.layers + 1] = { layer = g, pore = r.pore, overmelt = r.overmelt, contour_dev_max_mm = r.max_dev }
+      end
+    end
+    st.quality = q
+  end
   st.parameters = {}
   for k, v in pairs(p) do
     if type(v) ~= "function" and type(v) ~= "userdata" then st.parameters[k] = v end
