@@ -42,9 +42,11 @@ static int l_offset(lua_State *L) {
     o.thickness = lua_tonumber(L, -1);
   } else if (lua_type(L, -1) == LUA_TSTRING) {
     o.thickness_expr = lua_tostring(L, -1);
+  } else if (lua_isfunction(L, -1) || luaL_testudata(L, -1, GR_MT_FIELD)) {
+    o.thickness_field = gr_to_field(L, -1); /* T(x, y, z) of q's global coordinates */
   } else if (!lua_isnil(L, -1)) {
     gr_field_free(phi);
-    return luaL_error(L, "bad option 'thickness' (number or expression in x,y,z,u,v,w,L expected, got %s)", luaL_typename(L, -1));
+    return luaL_error(L, "bad option 'thickness' (number, expression in x,y,z,u,v,w,L, or function of x,y,z expected, got %s)", luaL_typename(L, -1));
   }
   lua_pop(L, 1);
   o.inside_expr = gr_opt_string(L, 1, "inside", NULL);
@@ -70,6 +72,7 @@ static int l_offset(lua_State *L) {
   gr_err_clear(&e);
   gr_field *g = gr_offset_field_new(&o, &e);
   gr_field_free(phi);
+  gr_field_free(o.thickness_field);
   if (!g) return gr_lua_error(L, &e);
   gr_push_field(L, g);
   if (o.mesh) {

@@ -204,6 +204,7 @@ typedef struct offset {
   const gr_mesh *h;
   gr_bvh *bvh;
   gr_expr *t, *tin;
+  gr_field *tfield;   /* T as a field of q, when given so */
   double tconst;
   double L, o[3];
   double maxt;        /* max T over H's vertices (with a 20 % reserve) */
@@ -225,12 +226,14 @@ static void offset_free(void *ud) {
   gr_bvh_free(f->bvh);
   gr_expr_free(f->t);
   gr_expr_free(f->tin);
+  gr_field_free(f->tfield);
   free(f);
 }
 
 /* T at n points q (global, mm). */
 static int thick(const offset *f, const gr_expr *x, size_t n, const double *qx, const double *qy,
                  const double *qz, double *out, gr_err *e) {
+  if (!x && f->tfield) return gr_field_eval(f->tfield, n, qx, qy, qz, out, e);
   if (!x) {
     for (size_t i = 0; i < n; i++) out[i] = f->tconst;
     return GR_OK;
@@ -426,6 +429,7 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   f->side = o->side >= 0 ? 1 : -1;
   f->mode = o->mode;
   f->tconst = o->thickness;
+  f->tfield = (!o->thickness_expr && o->thickness_field) ? gr_field_ref(o->thickness_field) : NULL;
   f->lip = gr_field_lipschitz(o->surface);
   const char *vars[] = {"x", "y", "z", "u", "v", "w"};
   const char *cn[] = {"L"};
@@ -444,12 +448,12 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
     offset_free(f);
     return NULL;
   }
-  if (!o->thickness_expr && !(o->thickness >= 0 && o->thickness <= o->cell / 2))
+  if (!o->thickness_expr && !f->tfield && !(o->thickness >= 0 && o->thickness <= o->cell / 2))
     return offset_free(f), gr_fail(e, GR_EARG, "bad option 'thickness' (must be in [0, L/2 = %g], got %g)", o->cell / 2, o->thickness), NULL;
   /* H over the box grown by a reach: margin + the largest thickness (from
    * samples over the grown box) + two mesh spacings */
   double tmax_est = f->tconst;
-  if (f->t || f->tin) {
+  if (f->t || f->tin || f->tfield) {
     enum { S = 8 };
     double sx[S * S * S], sy[S * S * S], sz[S * S * S], st[S * S * S];
     int n = 0;
@@ -464,7 +468,7 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
     tmax_est = 0;
     for (int pass = 0; pass < 2; pass++) {
       const gr_expr *x = pass ? f->tin : f->t;
-      if (!x) continue;
+      if (!x && !(pass == 0 && f->tfield)) continue;
       gr_err e2;
       if (thick(f, x, (size_t)n, sx, sy, sz, st, &e2) == GR_OK) {
         for (int q = 0; q < n; q++)
@@ -502,9 +506,9 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   double *vx = buf, *vy = buf + nv, *vz = buf + 2 * nv, *t = buf + 3 * nv;
   for (size_t i = 0; i < nv; i++) { vx[i] = f->h->v[3 * i]; vy[i] = f->h->v[3 * i + 1]; vz[i] = f->h->v[3 * i + 2]; }
   double maxt = f->tconst;
-  for (int pass = 0; pass < (f->tin ? 2 : 1) && (f->t || f->tin); pass++) {
+  for (int pass = 0; pass < (f->tin ? 2 : 1) && (f->t || f->tin || f->tfield); pass++) {
     const gr_expr *x = pass ? f->tin : f->t;
-    if (!x) continue;
+    if (!x && !(pass == 0 && f->tfield)) continue;
     if (thick(f, x, nv, vx, vy, vz, t, e)) {
       char m[512];
       snprintf(m, sizeof m, "%s", e->msg);
@@ -531,7 +535,7 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
    * sheets of the two parts meet there. Sheets only. */
   if (f->kind == GR_OFFSET_SHEET) {
     for (size_t i = 0; i < nv && !f->warning[0]; i += 7) {
-      double tv = (f->t || f->tin) ? t[i] : f->tconst;
+      double tv = (f->t || f->tin || f->tfield) ? t[i] : f->tconst;
       double v[3] = {vx[i], vy[i], vz[i]}, g[3];
       gr_err e2;
       if (gr_field_grad(f->phi, 1, &v[0], &v[1], &v[2], &g[0], &g[1], &g[2], &e2)) continue;
@@ -553,7 +557,7 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   f->maxt = 1.2 * maxt + 2 * o->cell / o->res;
   f->tnear = 0.5 * maxt;
   f->refine_band = 0.25 * o->cell / o->res; /* a quarter mesh spacing: far above H's error */
-  gr_field *g = gr_field_callback(offset_eval, offset_grad, f, offset_free, 1, o->kind == GR_OFFSET_SHEET ? "sheet offset" : "network offset");
+  gr_field *g = gr_field_callback(offset_eval, offset_grad, f, offset_free, f->tfield ? gr_field_threadsafe(f->tfield) : 1, o->kind == GR_OFFSET_SHEET ? "sheet offset" : "network offset");
   if (!g) { offset_free(f); return gr_fail(e, GR_EMEM, "out of memory"), NULL; }
   return g;
 }

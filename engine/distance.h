@@ -40,6 +40,8 @@ typedef struct gr_offset_opts {
   double thickness;           /* constant T (used when thickness_expr is NULL) */
   const char *thickness_expr; /* T in x,y,z,u,v,w,L (copied) */
   const char *inside_expr;    /* inside T for asymmetric sheets, or NULL */
+  gr_field *thickness_field;  /* T as a field of q's global x, y, z (e.g. a Lua
+                                 function), used when thickness_expr is NULL */
   int kind;                   /* GR_OFFSET_SHEET / GR_OFFSET_NETWORK */
   int side;                   /* network: -1 grows phi < 0 (default), +1 phi > 0 */
   int mode;                   /* GR_DIST_MESH / GR_DIST_EXACT */

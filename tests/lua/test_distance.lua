@@ -87,4 +87,14 @@ t.test("a thickness whose offset sheets touch is reported with where", function(
   t.eq(w2, nil, "no warning for T = 0.1")
 end)
 
+t.test("a Lua function thickness T(x, y, z) of the closest point", function()
+  local g = gradus.distance.offset { surface = gradus.field.expr("sqrt(x^2+y^2)-3"), cell = 12, lo = { -6, -6, -0.5 },
+    hi = { 6, 6, 0.5 }, res = 40, kind = "network", thickness = function(x, y, z) return x / 6 + 1 end }
+  -- eq. (5): at q = (3, 0, 0) T = 1.5, so the offset is at radius 4.5; at q = (-3, 0, 0) T = 0.5
+  t.near(g:eval(4.5, 0, 0), 0, 1e-6, "zero at radius 3 + T(q)")
+  t.near(g:eval(-2.5, 0, 0), -1, 1e-6, "sd - T inside")
+  t.raises(function() gradus.distance.offset { surface = "primitive", thickness = function() return -1 end } end,
+    "bad option 'thickness'")
+end)
+
 t.done()
