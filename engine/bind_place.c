@@ -540,7 +540,9 @@ static void push_report(lua_State *L, const gr_kb_report *r) {
   if (r->messages) { lua_pushstring(L, r->messages); lua_setfield(L, -2, "messages"); }
 }
 
-static int l_kb_verify(lua_State *L) {
+/* Open the knowledge base named by argument 1 (or the default), run verify
+ * (opts NULL) or prune, push the report. */
+static int kb_report(lua_State *L, const gr_kb_prune_opts *prune) {
   char buf[4096];
   const char *dir = kb_dir_arg(L, 1, buf, sizeof buf);
   gr_err e;
@@ -549,7 +551,7 @@ static int l_kb_verify(lua_State *L) {
   if (!kb) return gr_lua_error(L, &e);
   gr_kb_report r;
   memset(&r, 0, sizeof r);
-  int rc = gr_kb_verify(kb, &r, &e);
+  int rc = prune ? gr_kb_prune(kb, prune, &r, &e) : gr_kb_verify(kb, &r, &e);
   gr_kb_close(kb);
   if (rc) { gr_kb_report_clear(&r); return gr_lua_error(L, &e); }
   push_report(L, &r);
@@ -557,25 +559,15 @@ static int l_kb_verify(lua_State *L) {
   return 1;
 }
 
+/* gradus.kb.verify([dir]) */
+static int l_kb_verify(lua_State *L) { return kb_report(L, NULL); }
+
 /* gradus.kb.prune([dir [, {older_than = unix seconds}]]) */
 static int l_kb_prune(lua_State *L) {
-  char buf[4096];
-  const char *dir = kb_dir_arg(L, 1, buf, sizeof buf);
   gr_kb_prune_opts po;
   memset(&po, 0, sizeof po);
   po.older_than = (long long)gr_opt_number(L, 2, "older_than", 0);
-  gr_err e;
-  gr_err_clear(&e);
-  gr_kb *kb = gr_kb_open(dir, &e);
-  if (!kb) return gr_lua_error(L, &e);
-  gr_kb_report r;
-  memset(&r, 0, sizeof r);
-  int rc = gr_kb_prune(kb, &po, &r, &e);
-  gr_kb_close(kb);
-  if (rc) { gr_kb_report_clear(&r); return gr_lua_error(L, &e); }
-  push_report(L, &r);
-  gr_kb_report_clear(&r);
-  return 1;
+  return kb_report(L, &po);
 }
 
 static const luaL_Reg place_fns[] = {{"job", l_job}, {NULL, NULL}};
