@@ -75,6 +75,7 @@ static int l_job(lua_State *L) {
   o.min_length = gr_opt_number(L, 1, "min_length", o.min_length);
   o.threads = gr_opt_integer(L, 1, "threads", o.threads);
   o.nlasers = gr_opt_integer(L, 1, "lasers", 1);
+  o.share = gr_opt_boolean(L, 1, "share", o.share);
   gr_err e;
   gr_err_clear(&e);
   b->j = gr_job_new(&o, &e);

@@ -208,6 +208,10 @@ typedef struct offset {
   double tconst;
   double L, o[3];
   double maxt;        /* max T over H's vertices (with a 20 % reserve) */
+  double tmax;        /* max T over H's vertices */
+  double herr;        /* bound on the distance between H's mesh and phi = 0 */
+  gr_field *like;     /* the offset field whose H and BVH are shared, or NULL */
+  double shift[3];    /* H = the shared mesh translated by this, mm */
   double lip;         /* Lipschitz bound of phi */
   int kind, side, mode;
   double tnear;       /* typical T, centre of the refinement band */
@@ -223,7 +227,8 @@ static void offset_free(void *ud) {
     fprintf(stderr, "offset field: %ld calls, %ld points, %ld BVH queries, %ld refinements\n", f->ncalls, f->npts, f->nquery, f->nrefine);
   gr_field_free(f->phi);
   gr_mesh_free(f->own);
-  gr_bvh_free(f->bvh);
+  if (!f->like) gr_bvh_free(f->bvh);
+  gr_field_free(f->like);
   gr_expr_free(f->t);
   gr_expr_free(f->tin);
   gr_field_free(f->tfield);
@@ -263,7 +268,7 @@ static int thick(const offset *f, const gr_expr *x, size_t n, const double *qx, 
  * converges linearly, slowly where d times the curvature nears 1 (P
  * necks): 12 rounds left 1e-5 mm there, 40 reach 1e-9 mm (most points stop
  * after a few rounds). */
-static void exact_refine(const offset *f, const double p[3], double q[3]) {
+static int exact_refine(const offset *f, const double p[3], double q[3]) {
   double x[3] = {q[0], q[1], q[2]};
   for (int it = 0; it < 40; it++) {
     double v, gx, gy, gz;
@@ -271,17 +276,17 @@ static void exact_refine(const offset *f, const double p[3], double q[3]) {
     for (int k = 0; k < 3; k++) {
       if (gr_field_eval(f->phi, 1, &x[0], &x[1], &x[2], &v, &e) ||
           gr_field_grad(f->phi, 1, &x[0], &x[1], &x[2], &gx, &gy, &gz, &e))
-        return;
+        return 0;
       double g2 = gx * gx + gy * gy + gz * gz;
-      if (!(g2 > 1e-300)) return;
+      if (!(g2 > 1e-300)) return 0;
       x[0] -= v * gx / g2;
       x[1] -= v * gy / g2;
       x[2] -= v * gz / g2;
       if (fabs(v) < 1e-14) break;
     }
-    if (gr_field_grad(f->phi, 1, &x[0], &x[1], &x[2], &gx, &gy, &gz, &e)) return;
+    if (gr_field_grad(f->phi, 1, &x[0], &x[1], &x[2], &gx, &gy, &gz, &e)) return 0;
     double gn = sqrt(gx * gx + gy * gy + gz * gz);
-    if (!(gn > 0)) return;
+    if (!(gn > 0)) return 0;
     double n[3] = {gx / gn, gy / gn, gz / gn};
     double r[3] = {p[0] - x[0], p[1] - x[1], p[2] - x[2]};
     double rn = dot3(r, n);
@@ -291,7 +296,98 @@ static void exact_refine(const offset *f, const double p[3], double q[3]) {
     if (tl < 1e-12) break;
   }
   double dq = sqrt((x[0] - q[0]) * (x[0] - q[0]) + (x[1] - q[1]) * (x[1] - q[1]) + (x[2] - q[2]) * (x[2] - q[2]));
-  if (isfinite(dq) && dq < 0.25 * f->L) memcpy(q, x, sizeof x);
+  if (!(isfinite(dq) && dq < 0.25 * f->L)) return 0;
+  memcpy(q, x, sizeof x);
+  return 1;
+}
+
+/* Solve the 4x4 system A x = b in place (partial pivoting); 0 if singular. */
+static int solve4(double A[4][4], double b[4]) {
+  for (int c = 0; c < 4; c++) {
+    int piv = c;
+    for (int r = c + 1; r < 4; r++)
+      if (fabs(A[r][c]) > fabs(A[piv][c])) piv = r;
+    if (!(fabs(A[piv][c]) > 1e-300)) return 0;
+    if (piv != c) {
+      for (int k = 0; k < 4; k++) { double t = A[c][k]; A[c][k] = A[piv][k]; A[piv][k] = t; }
+      double t = b[c]; b[c] = b[piv]; b[piv] = t;
+    }
+    for (int r = c + 1; r < 4; r++) {
+      double m = A[r][c] / A[c][c];
+      for (int k = c; k < 4; k++) A[r][k] -= m * A[c][k];
+      b[r] -= m * b[c];
+    }
+  }
+  for (int c = 3; c >= 0; c--) {
+    for (int k = c + 1; k < 4; k++) b[c] -= A[c][k] * b[k];
+    b[c] /= A[c][c];
+  }
+  return 1;
+}
+
+/* Closest point of phi = 0 to p from a nearby start q: Newton on the
+ * Lagrange conditions x - p + lambda grad phi(x) = 0, phi(x) = 0 (Hessian of
+ * phi by differences of gradients). Converges quadratically from a start
+ * near the answer (a neighbour's closest point); returns 0 (q unchanged)
+ * when it does not converge, so the caller can fall back. */
+static int exact_newton(const offset *f, const double p[3], double q[3]) {
+  double x[3] = {q[0], q[1], q[2]}, lam = 0, step = 1e-6 * f->L;
+  gr_err e;
+  double gs[3][3];
+  for (int it = 0; it < 20; it++) {
+    double v, g[3];
+    if (gr_field_eval(f->phi, 1, &x[0], &x[1], &x[2], &v, &e) ||
+        gr_field_grad(f->phi, 1, &x[0], &x[1], &x[2], &g[0], &g[1], &g[2], &e))
+      return 0;
+    double g2 = dot3(g, g);
+    if (!(g2 > 1e-300)) return 0;
+    if (it == 0) lam = ((p[0] - x[0]) * g[0] + (p[1] - x[1]) * g[1] + (p[2] - x[2]) * g[2]) / g2;
+    if (it == 0) /* the Hessian once: the start is near, so it barely changes */
+      for (int a = 0; a < 3; a++) {
+        double y[3] = {x[0], x[1], x[2]};
+        y[a] += step;
+        if (gr_field_grad(f->phi, 1, &y[0], &y[1], &y[2], &gs[a][0], &gs[a][1], &gs[a][2], &e)) return 0;
+        for (int c = 0; c < 3; c++) gs[a][c] = (gs[a][c] - g[c]) / step;
+      }
+    double A[4][4], b[4];
+    for (int r = 0; r < 3; r++) {
+      for (int c = 0; c < 3; c++) A[r][c] = (r == c) + lam * 0.5 * (gs[c][r] + gs[r][c]);
+      A[r][3] = g[r];
+      A[3][r] = g[r];
+      b[r] = -(x[r] - p[r] + lam * g[r]);
+    }
+    A[3][3] = 0;
+    b[3] = -v;
+    if (!solve4(A, b)) return 0;
+    for (int a = 0; a < 3; a++) x[a] += b[a];
+    lam += b[3];
+    double dx = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+    if (!isfinite(dx)) return 0;
+    /* the Hessian is frozen at the start, so convergence is linear with a
+     * tiny rate (the start is within a grid cell): the error left after a
+     * step of 1e-6 L is below 1e-9 L */
+    if (dx < 1e-6 * f->L) {
+      double dq = sqrt((x[0] - q[0]) * (x[0] - q[0]) + (x[1] - q[1]) * (x[1] - q[1]) + (x[2] - q[2]) * (x[2] - q[2]));
+      if (!(dq < 0.25 * f->L)) return 0;
+      memcpy(q, x, sizeof x);
+      return 1;
+    }
+  }
+  return 0;
+}
+
+/* Closest point of H to p within maxd, H being the (shared) mesh translated by f->shift. */
+static void closest_h(const offset *f, const double p[3], double maxd, gr_hit *h) {
+  double pp[3] = {p[0] - f->shift[0], p[1] - f->shift[1], p[2] - f->shift[2]};
+  gr_bvh_closest(f->bvh, pp, maxd, h);
+  for (int a = 0; a < 3; a++) h->q[a] += f->shift[a];
+}
+
+/* The field's value from a closest point's signed distance sd (+ where
+ * phi > 0) and the thickness T there (Tin: inside thickness, for sd < 0). */
+static double offset_value(const offset *f, double sd, double T, double Tin) {
+  if (f->kind == GR_OFFSET_SHEET) return fabs(sd) - (f->tin && sd < 0 ? Tin : T);
+  return (f->side > 0 ? -sd : sd) - T;
 }
 
 static int offset_eval(void *ud, size_t n, const double *x, const double *y, const double *z,
@@ -319,7 +415,7 @@ static int offset_eval(void *ud, size_t n, const double *x, const double *y, con
       double p[3] = {x[s + i], y[s + i], z[s + i]};
       gr_hit h;
       __atomic_fetch_add(&f->nquery, 1, __ATOMIC_RELAXED);
-      gr_bvh_closest(f->bvh, p, band, &h);
+      closest_h(f, p, band, &h);
       if (h.tri < 0) { /* nothing within the band: only the sign matters */
         int in = f->side > 0 ? ph[i] > 0 : ph[i] < 0;
         out[s + i] = (f->kind == GR_OFFSET_NETWORK && in) ? -band : band - f->maxt;
@@ -363,13 +459,7 @@ static int offset_eval(void *ud, size_t n, const double *x, const double *y, con
     }
     for (size_t q = 0; q < k; q++) {
       size_t i = idx[q];
-      double sd = ph[i] > 0 ? dd[q] : -dd[q];
-      if (f->kind == GR_OFFSET_SHEET) {
-        double T = (f->tin && ph[i] < 0) ? ti[q] : tt[q];
-        out[s + i] = dd[q] - T;
-      } else {
-        out[s + i] = (f->side > 0 ? -sd : sd) - tt[q];
-      }
+      out[s + i] = offset_value(f, ph[i] > 0 ? dd[q] : -dd[q], tt[q], ti[q]);
     }
   }
   return GR_OK;
@@ -386,7 +476,7 @@ static int offset_grad(void *ud, size_t n, const double *x, const double *y, con
     double p[3] = {x[i], y[i], z[i]}, ph;
     if (gr_field_eval(f->phi, 1, &p[0], &p[1], &p[2], &ph, e)) return e->code;
     gr_hit h;
-    gr_bvh_closest(f->bvh, p, INFINITY, &h);
+    closest_h(f, p, INFINITY, &h);
     double v[3] = {0, 0, 0}, dd = 0;
     if (h.tri >= 0) {
       if (f->mode == GR_DIST_EXACT) exact_refine(f, p, h.q);
@@ -407,6 +497,124 @@ static int offset_grad(void *ud, size_t n, const double *x, const double *y, con
     gx[i] = sgn * v[0];
     gy[i] = sgn * v[1];
     gz[i] = sgn * v[2];
+  }
+  return GR_OK;
+}
+
+double gr_offset_max_thickness(const gr_field *f) {
+  const offset *o = gr_field_callback_data(f, offset_eval);
+  return o ? o->tmax : -1;
+}
+
+int gr_offset_closest(const gr_field *f_, size_t n, const double *x, const double *y,
+                      const double *z, double dmax, double *q, double *sd, gr_err *e) {
+  const offset *f = gr_field_callback_data(f_, offset_eval);
+  if (!f) return gr_fail(e, GR_EARG, "closest points need an offset field");
+  enum { B = 256 };
+  double ph[B];
+  for (size_t s = 0; s < n; s += B) {
+    size_t m = n - s < B ? n - s : B;
+    int rc = gr_field_eval(f->phi, m, x + s, y + s, z + s, ph, e);
+    if (rc) return rc;
+    for (size_t i = 0; i < m; i++) {
+      double sg = ph[i] > 0 ? 1 : -1, *qi = q + 3 * (s + i);
+      double lb = isfinite(f->lip) ? fabs(ph[i]) / f->lip : 0;
+      gr_hit h;
+      double p[3] = {x[s + i], y[s + i], z[s + i]};
+      if (lb > dmax) {
+        qi[0] = qi[1] = qi[2] = NAN;
+        sd[s + i] = sg * lb;
+        continue;
+      }
+      /* from the previous point's closest point when it is near (points
+       * come in grid order), checked against the mesh: no part of H may be
+       * nearer than the answer (less H's own error) */
+      const double *pq = (s + i > 0) ? q + 3 * (s + i - 1) : NULL;
+      double pp[3] = {0, 0, 0};
+      if (pq) { pp[0] = x[s + i - 1]; pp[1] = y[s + i - 1]; pp[2] = z[s + i - 1]; }
+      if (f->mode == GR_DIST_EXACT && pq && !isnan(pq[0]) &&
+          (p[0] - pp[0]) * (p[0] - pp[0]) + (p[1] - pp[1]) * (p[1] - pp[1]) + (p[2] - pp[2]) * (p[2] - pp[2]) < 0.01 * f->L * f->L) {
+        double qq[3] = {pq[0], pq[1], pq[2]};
+        if (exact_newton(f, p, qq)) {
+          double d = sqrt((p[0] - qq[0]) * (p[0] - qq[0]) + (p[1] - qq[1]) * (p[1] - qq[1]) + (p[2] - qq[2]) * (p[2] - qq[2]));
+          gr_hit c;
+          if (d <= dmax && (closest_h(f, p, d - f->herr, &c), c.tri < 0)) {
+            memcpy(qi, qq, sizeof qq);
+            sd[s + i] = sg * d;
+            continue;
+          }
+        }
+      }
+      if (closest_h(f, p, dmax, &h), h.tri < 0) {
+        qi[0] = qi[1] = qi[2] = NAN;
+        sd[s + i] = sg * fmax(lb, dmax);
+        continue;
+      }
+      if (f->mode == GR_DIST_EXACT) exact_refine(f, p, h.q);
+      memcpy(qi, h.q, sizeof h.q);
+      sd[s + i] = sg * sqrt((p[0] - h.q[0]) * (p[0] - h.q[0]) + (p[1] - h.q[1]) * (p[1] - h.q[1]) + (p[2] - h.q[2]) * (p[2] - h.q[2]));
+    }
+  }
+  return GR_OK;
+}
+
+int gr_offset_values(const gr_field *f_, size_t n, const double *q, const double *sd,
+                     double *out, gr_err *e) {
+  const offset *f = gr_field_callback_data(f_, offset_eval);
+  if (!f) return gr_fail(e, GR_EARG, "offset values need an offset field");
+  enum { B = 256 };
+  double qx[B], qy[B], qz[B], tt[B], ti[B];
+  size_t idx[B];
+  for (size_t s = 0; s < n; s += B) {
+    size_t m = n - s < B ? n - s : B, k = 0;
+    for (size_t i = 0; i < m; i++) {
+      const double *qi = q + 3 * (s + i);
+      if (isnan(qi[0])) { /* far from H: a bound with the right sign */
+        out[s + i] = offset_value(f, sd[s + i], f->tmax, f->tmax);
+        continue;
+      }
+      qx[k] = qi[0]; qy[k] = qi[1]; qz[k] = qi[2];
+      idx[k++] = i;
+    }
+    if (k == 0) continue;
+    int rc = thick(f, f->t, k, qx, qy, qz, tt, e);
+    if (!rc && f->tin) rc = thick(f, f->tin, k, qx, qy, qz, ti, e);
+    if (rc) return rc;
+    for (size_t r = 0; r < k; r++) out[s + idx[r]] = offset_value(f, sd[s + idx[r]], tt[r], f->tin ? ti[r] : tt[r]);
+  }
+  return GR_OK;
+}
+
+int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const double *y,
+                        const double *z, const double *hint, double *out, double *grad, gr_err *e) {
+  const offset *f = gr_field_callback_data(f_, offset_eval);
+  if (!f) return gr_fail(e, GR_EARG, "offset evaluation needs an offset field");
+  enum { B = 256 };
+  double q[3 * B], sd[B], ph[B];
+  for (size_t s = 0; s < n; s += B) {
+    size_t m = n - s < B ? n - s : B;
+    int rc = gr_field_eval(f->phi, m, x + s, y + s, z + s, ph, e);
+    if (rc) return rc;
+    for (size_t i = 0; i < m; i++) {
+      double p[3] = {x[s + i], y[s + i], z[s + i]}, *qi = q + 3 * i;
+      memcpy(qi, hint + 3 * (s + i), 3 * sizeof *qi);
+      if (f->mode != GR_DIST_EXACT || isnan(qi[0]) || !exact_newton(f, p, qi)) {
+        /* no usable hint: search the mesh */
+        gr_hit h;
+        closest_h(f, p, INFINITY, &h);
+        if (h.tri < 0) return gr_fail(e, GR_EGEOM, "no closest point of H to (%g, %g, %g)", p[0], p[1], p[2]);
+        if (f->mode == GR_DIST_EXACT) exact_refine(f, p, h.q);
+        memcpy(qi, h.q, sizeof h.q);
+      }
+      double d = sqrt((p[0] - qi[0]) * (p[0] - qi[0]) + (p[1] - qi[1]) * (p[1] - qi[1]) + (p[2] - qi[2]) * (p[2] - qi[2]));
+      sd[i] = ph[i] > 0 ? d : -d;
+      if (grad) {
+        /* the distance's gradient (T's own slope along H neglected) */
+        double sg = f->kind == GR_OFFSET_SHEET ? 1 : (f->side > 0 ? -1 : 1) * (sd[i] < 0 ? -1 : 1);
+        for (int a = 0; a < 3; a++) grad[3 * (s + i) + a] = d > 1e-9 ? sg * (p[a] - qi[a]) / d : NAN;
+      }
+    }
+    if ((rc = gr_offset_values(f_, m, q, sd, out + s, e))) return rc;
   }
   return GR_OK;
 }
@@ -480,7 +688,14 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
     if (tmax_est > 0.5 * o->cell) tmax_est = 0.5 * o->cell;
   }
   double reach = o->margin + 1.5 * tmax_est + 3 * o->cell / o->res;
-  if (o->mesh) {
+  const offset *lk = o->like ? gr_field_callback_data(o->like, offset_eval) : NULL;
+  if (o->like && !lk) { offset_free(f); return gr_fail(e, GR_EARG, "bad option 'like' (an offset field is needed)"), NULL; }
+  if (lk) {
+    f->like = gr_field_ref(o->like);
+    f->h = lk->h;
+    f->bvh = lk->bvh;
+    for (int a = 0; a < 3; a++) f->shift[a] = lk->shift[a] + o->like_shift[a];
+  } else if (o->mesh) {
     f->h = o->mesh;
   } else {
     double lo[3], hi[3];
@@ -498,13 +713,25 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
     if (!f->own) { offset_free(f); return NULL; }
     f->h = f->own;
   }
-  if (!(f->bvh = gr_bvh_new(f->h, e))) { offset_free(f); return NULL; }
+  if (!f->bvh && !(f->bvh = gr_bvh_new(f->h, e))) { offset_free(f); return NULL; }
   /* thickness over H's vertices: validation and the narrow band */
   size_t nv = f->h->nv;
   double *buf = malloc((4 * nv + 1) * sizeof *buf);
   if (!buf) { offset_free(f); return gr_fail(e, GR_EMEM, "out of memory"), NULL; }
   double *vx = buf, *vy = buf + nv, *vz = buf + 2 * nv, *t = buf + 3 * nv;
-  for (size_t i = 0; i < nv; i++) { vx[i] = f->h->v[3 * i]; vy[i] = f->h->v[3 * i + 1]; vz[i] = f->h->v[3 * i + 2]; }
+  {
+    /* a shared H may reach far beyond this field's box: only its part within reach counts */
+    size_t m = 0;
+    for (size_t i = 0; i < nv; i++) {
+      double p[3] = {f->h->v[3 * i] + f->shift[0], f->h->v[3 * i + 1] + f->shift[1], f->h->v[3 * i + 2] + f->shift[2]};
+      int in = 1;
+      for (int a = 0; a < 3 && lk; a++) in &= p[a] >= o->box_lo[a] - reach && p[a] <= o->box_hi[a] + reach;
+      if (!in) continue;
+      vx[m] = p[0]; vy[m] = p[1]; vz[m] = p[2];
+      m++;
+    }
+    nv = m;
+  }
   double maxt = f->tconst;
   for (int pass = 0; pass < (f->tin ? 2 : 1) && (f->t || f->tin || f->tfield); pass++) {
     const gr_expr *x = pass ? f->tin : f->t;
@@ -545,7 +772,7 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
         double p[3];
         for (int a = 0; a < 3; a++) p[a] = v[a] + sgn * tv * g[a] / gn;
         gr_hit h;
-        gr_bvh_closest(f->bvh, p, INFINITY, &h);
+        closest_h(f, p, 0.95 * tv, &h);
         double dq = sqrt((h.q[0] - v[0]) * (h.q[0] - v[0]) + (h.q[1] - v[1]) * (h.q[1] - v[1]) + (h.q[2] - v[2]) * (h.q[2] - v[2]));
         if (h.tri >= 0 && dq > tv && h.dist < 0.95 * tv)
           snprintf(f->warning, sizeof f->warning,
@@ -554,6 +781,8 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
     }
   }
   free(buf);
+  f->tmax = maxt;
+  f->herr = 0.5 * o->cell / o->res;
   f->maxt = 1.2 * maxt + 2 * o->cell / o->res;
   f->tnear = 0.5 * maxt;
   f->refine_band = 0.25 * o->cell / o->res; /* a quarter mesh spacing: far above H's error */

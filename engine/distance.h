@@ -46,6 +46,10 @@ typedef struct gr_offset_opts {
   int side;                   /* network: -1 grows phi < 0 (default), +1 phi > 0 */
   int mode;                   /* GR_DIST_MESH / GR_DIST_EXACT */
   const gr_mesh *mesh;        /* use this H instead of meshing (must outlive the field) */
+  gr_field *like;             /* share H and its BVH with this offset field of the same
+                                 surface (a reference is taken), translated by like_shift
+                                 (a lattice vector, mm); its box must cover this one's */
+  double like_shift[3];
 } gr_offset_opts;
 gr_offset_opts gr_offset_defaults(void);
 
@@ -58,5 +62,28 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e);
  * thickness is large enough that offset sheets of neighbouring parts touch,
  * with where. */
 const char *gr_offset_warning(const gr_field *f);
+
+/* Largest T over H's vertices (mm), or -1 when f is not an offset field. */
+double gr_offset_max_thickness(const gr_field *f);
+
+/* Closest points of H to n points within dmax (mm) of H, refined onto phi = 0
+ * in exact mode: q (3n, mm) and the signed distance sd (n, + where phi > 0).
+ * Points farther than dmax get q = NaN and sd = +-(a lower bound >= dmax).
+ * With gr_offset_values, these give the field's value for any thickness of
+ * the same surface: closest points are shared by fields differing only in T. */
+int gr_offset_closest(const gr_field *f, size_t n, const double *x, const double *y,
+                      const double *z, double dmax, double *q, double *sd, gr_err *e);
+/* Values of offset field f from closest points and signed distances (from
+ * gr_offset_closest of any offset field of the same surface): g = d - T(q)
+ * (sheet) or sd - T(q) (network); q = NaN gives a bound of the right sign. */
+int gr_offset_values(const gr_field *f, size_t n, const double *q, const double *sd,
+                     double *out, gr_err *e);
+/* f at n points, each closest point found by refining a hint (3n, mm; a
+ * closest point of a nearby point, e.g. a grid neighbour) instead of searching
+ * the mesh; a NaN or non-converging hint falls back to the search. Same
+ * values as gr_field_eval where the hint lies in the right part of H.
+ * grad (3n, or NULL): the gradient of the distance part (NaN on H). */
+int gr_offset_eval_near(const gr_field *f, size_t n, const double *x, const double *y,
+                        const double *z, const double *hint, double *out, double *grad, gr_err *e);
 
 #endif

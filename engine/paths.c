@@ -65,7 +65,7 @@ double gr_ring_length(const gr_rings *r, size_t i) {
   size_t n = gr_ring_len(r, i);
   double s = 0;
   for (size_t k = 0, j = n - 1; k < n; j = k++)
-    s += hypot(p[2 * k] - p[2 * j], p[2 * k + 1] - p[2 * j + 1]);
+    s += gr_len2d(p[2 * k] - p[2 * j], p[2 * k + 1] - p[2 * j + 1]);
   return s;
 }
 
@@ -251,10 +251,10 @@ double gr_block_length(const gr_layer *l, const gr_block *b) {
   double s = 0;
   if (b->shape == GR_SEGMENTS) {
     for (size_t k = 0; k + 1 < b->n; k += 2)
-      s += hypot(p[2 * k + 2] - p[2 * k], p[2 * k + 3] - p[2 * k + 1]);
+      s += gr_len2d(p[2 * k + 2] - p[2 * k], p[2 * k + 3] - p[2 * k + 1]);
   } else {
     for (size_t k = 0; k + 1 < b->n; k++)
-      s += hypot(p[2 * k + 2] - p[2 * k], p[2 * k + 3] - p[2 * k + 1]);
+      s += gr_len2d(p[2 * k + 2] - p[2 * k], p[2 * k + 3] - p[2 * k + 1]);
   }
   return s;
 }
@@ -270,7 +270,7 @@ void gr_layer_stats_get(const gr_layer *l, gr_layer_stats *s) {
     if (b->n == 0) continue;
     if (b->shape == GR_SEGMENTS) {
       for (size_t j = 0; j + 1 < b->n; j += 2) {
-        double jl = hypot(p[2 * j] - px, p[2 * j + 1] - py);
+        double jl = gr_len2d(p[2 * j] - px, p[2 * j + 1] - py);
         if (have && jl > 1e-9) { s->jumps++; s->jump_length += jl; }
         have = 1;
         s->vectors[k]++;
@@ -278,7 +278,7 @@ void gr_layer_stats_get(const gr_layer *l, gr_layer_stats *s) {
         py = p[2 * j + 3];
       }
     } else {
-      double jl = hypot(p[0] - px, p[1] - py);
+      double jl = gr_len2d(p[0] - px, p[1] - py);
       if (have && jl > 1e-9) { s->jumps++; s->jump_length += jl; }
       have = 1;
       s->vectors[k] += b->n > 1 ? b->n - 1 : 0;

@@ -55,6 +55,7 @@ gr_job_opts gr_job_defaults(void) {
   o.threads = 2;
   o.verify = 0;
   o.nlasers = 1;
+  o.share = 1;
   return o;
 }
 
@@ -512,7 +513,8 @@ static gr_field *skin_field(gr_field *d, double s) {
 
 /* The graded field of voxel v (offset field of its spec, with H meshed over
  * the voxel grown by a margin), intersected with the domain when trimmed. */
-static gr_field *voxel_field(gr_job *j, int v, int trimmed, gr_err *e) {
+static gr_field *voxel_field(gr_job *j, int v, int trimmed, gr_field *like, const double shift[3],
+                             double extra, gr_err *e) {
   const gr_spec *s = &j->specs[j->vspec[v]];
   double o[3];
   voxel_origin(j, v, o);
@@ -521,10 +523,12 @@ static gr_field *voxel_field(gr_job *j, int v, int trimmed, gr_err *e) {
   gr_offset_opts oo = gr_offset_defaults();
   oo.surface = phi;
   oo.cell = j->o.cell;
+  oo.like = like;
+  for (int a = 0; a < 3 && like; a++) oo.like_shift[a] = shift[a];
   for (int a = 0; a < 3; a++) oo.origin[a] = j->o.origin[a];
   for (int a = 0; a < 3; a++) oo.box_lo[a] = o[a];
   for (int a = 0; a < 3; a++) oo.box_hi[a] = o[a] + j->o.cell;
-  oo.margin = j->o.beam_offset + (j->o.contours + 2) * j->o.hatch + 4 * j->o.slice_cell;
+  oo.margin = j->o.beam_offset + (j->o.contours + 2) * j->o.hatch + 4 * j->o.slice_cell + extra;
   oo.res = j->o.res;
   oo.thickness_expr = j->specs[j->vspec[v]].thickness;
   oo.inside_expr = s->inside[0] ? s->inside : NULL;
@@ -685,9 +689,148 @@ static int template_alloc(gr_job *j, int c, int ja, int jb, gr_err *e) {
   return GR_OK;
 }
 
+/* Margin of a template's slice window around the voxel: whole grid cells,
+ * wide enough for the contours and hatch region of the voxel's edge. */
+static double window_margin(const gr_job *j) {
+  double h = j->o.slice_cell;
+  return ceil((j->o.beam_offset + (j->o.contours + 1) * j->o.hatch + 2 * h) / h) * h;
+}
+
+/* ---- shared closest points ----
+ * Classes that differ only in thickness (same surface, level, kind, z-phase
+ * and layers: the rows of a part graded along its height, say) share H. The
+ * closest point of every slice-grid node is computed once for the group,
+ * over one period of the grid (L = P h), and each class only evaluates its
+ * own T there; crossings are refined from the nearest node's closest point
+ * instead of searching the mesh. Exact mode only (mesh mode's H depends on
+ * the voxel's box). */
+typedef struct cptab {
+  int P;          /* nodes per period */
+  int ref;        /* reference class */
+  double lo[2];   /* slice window corner of the reference voxel, mm */
+  double oref[3]; /* reference voxel origin, mm */
+  double dmax;    /* closest points are exact within this distance of H, mm */
+  double *q, *sd; /* per template layer, P*P nodes: closest point, signed distance */
+} cptab;
+
+static void cptab_free(cptab *t) {
+  if (!t) return;
+  free(t->q);
+  free(t->sd);
+  free(t);
+}
+
+/* Nodes per period, or 0 when the slice grid is not periodic with the cell. */
+static int grid_period(const gr_job *j) {
+  double P = j->o.cell / j->o.slice_cell;
+  return fabs(P - round(P)) < 1e-9 * P && round(P) >= 2 ? (int)round(P) : 0;
+}
+
+/* Closest points of table layer q (thread-safe for distinct q). */
+static int cptab_layer(gr_job *j, const cptab *t, int q, gr_err *e) {
+  const vclass *cl = &j->cls[t->ref];
+  int i, jj, k;
+  voxel_ijk(j, cl->rep, &i, &jj, &k);
+  size_t n = (size_t)t->P * t->P;
+  double *x = malloc(3 * n * sizeof *x);
+  if (!x) return gr_fail(e, GR_EMEM, "out of memory");
+  double *y = x + n, *z = x + 2 * n, zq = layer_mid(j, row_first_layer(j, k) + cl->t->j0 + q);
+  for (int b = 0; b < t->P; b++)
+    for (int a = 0; a < t->P; a++) {
+      x[a + (size_t)t->P * b] = t->lo[0] + a * j->o.slice_cell;
+      y[a + (size_t)t->P * b] = t->lo[1] + b * j->o.slice_cell;
+      z[a + (size_t)t->P * b] = zq;
+    }
+  int rc = gr_offset_closest(cl->field, n, x, y, z, t->dmax, t->q + 3 * n * q, t->sd + n * q, e);
+  free(x);
+  return rc;
+}
+
+/* Refinement on the true field from the closest points of the nearest nodes. */
+typedef struct near_ud {
+  const gr_field *f;
+  double z, lo[2], h;
+  int nx, ny;
+  const double *q; /* 3 per window node */
+} near_ud;
+
+
+/* Value (and in-plane gradient when gx != NULL) at n points. */
+static int near_eval(void *ud_, size_t n, const double *x, const double *y, double *out,
+                     double *gx, double *gy, gr_err *e) {
+  const near_ud *u = ud_;
+  enum { B = 256 };
+  double hint[3 * B], zb[B], g[3 * B];
+  for (size_t s = 0; s < n; s += B) {
+    size_t m = n - s < B ? n - s : B;
+    for (size_t i = 0; i < m; i++) {
+      double fx = (x[s + i] - u->lo[0]) / u->h, fy = (y[s + i] - u->lo[1]) / u->h;
+      int a = (int)floor(fx), b = (int)floor(fy);
+      double best = INFINITY;
+      hint[3 * i] = hint[3 * i + 1] = hint[3 * i + 2] = NAN;
+      for (int c = 0; c < 4; c++) {
+        int ia = a + (c & 1), ib = b + (c >> 1);
+        if (ia < 0 || ib < 0 || ia >= u->nx || ib >= u->ny) continue;
+        const double *q = u->q + 3 * (ia + (size_t)u->nx * ib);
+        double d2 = (fx - ia) * (fx - ia) + (fy - ib) * (fy - ib);
+        if (!isnan(q[0]) && d2 < best) {
+          /* the node's closest point moved along the tangent plane there
+           * by the point's offset from the node */
+          double c[3] = {u->lo[0] + ia * u->h, u->lo[1] + ib * u->h, u->z};
+          double nv[3] = {c[0] - q[0], c[1] - q[1], c[2] - q[2]}, dp[3] = {x[s + i] - c[0], y[s + i] - c[1], 0};
+          double nn = sqrt(nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2]);
+          double dn = nn > 1e-9 ? (dp[0] * nv[0] + dp[1] * nv[1]) / (nn * nn) : 0;
+          best = d2;
+          for (int k = 0; k < 3; k++) hint[3 * i + k] = q[k] + dp[k] - dn * nv[k];
+        }
+      }
+      zb[i] = u->z;
+    }
+    int rc = gr_offset_eval_near(u->f, m, x + s, y + s, zb, hint, out + s, gx ? g : NULL, e);
+    if (rc) return rc;
+    if (gx)
+      for (size_t i = 0; i < m; i++) {
+        gx[s + i] = g[3 * i];
+        gy[s + i] = g[3 * i + 1];
+      }
+  }
+  return GR_OK;
+}
+static int near_fn(void *ud, size_t n, const double *x, const double *y, double *out, gr_err *e) {
+  return near_eval(ud, n, x, y, out, NULL, NULL, e);
+}
+
+/* Section of class c's layer at z (template layer q) through the table. */
+static int slice_shared(gr_job *j, const cptab *t, const gr_field *f, const double o[3], int q,
+                        double z, const gr_slice_opts *so, gr_rings *out, gr_err *e) {
+  int nx, ny;
+  double hx, hy, L = j->o.cell;
+  gr_slice_grid_size(so, &nx, &ny, &hx, &hy);
+  size_t nn = (size_t)nx * ny, np = (size_t)t->P * t->P;
+  double *Q = malloc(5 * nn * sizeof *Q);
+  if (!Q) return gr_fail(e, GR_EMEM, "out of memory");
+  double *sd = Q + 3 * nn, *v = Q + 4 * nn;
+  double sh[3] = {o[0] - t->oref[0], o[1] - t->oref[1], o[2] - t->oref[2]};
+  const double *tq = t->q + 3 * np * q, *tsd = t->sd + np * q;
+  for (int b = 0; b < ny; b++)
+    for (int a = 0; a < nx; a++) {
+      size_t n = a + (size_t)nx * b, k = a % t->P + (size_t)t->P * (b % t->P);
+      Q[3 * n] = tq[3 * k] + sh[0] + (a / t->P) * L;
+      Q[3 * n + 1] = tq[3 * k + 1] + sh[1] + (b / t->P) * L;
+      Q[3 * n + 2] = tq[3 * k + 2] + sh[2];
+      sd[n] = tsd[k];
+    }
+  int rc = gr_offset_values(f, nn, Q, sd, v, e);
+  near_ud u = {f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q};
+  if (!rc) rc = gr_slice_grid(v, so, near_fn, near_eval, &u, out, e);
+  free(Q);
+  return rc;
+}
+
 /* Compute local layers [qa, qb) (indices into the template) of class c
- * with its field f. Thread-safe for disjoint layer ranges. */
-static int build_layers(gr_job *j, int c, const gr_field *f, int qa, int qb, gr_err *e) {
+ * with its field f, through the shared closest points tab if not NULL.
+ * Thread-safe for disjoint layer ranges. */
+static int build_layers(gr_job *j, int c, const gr_field *f, const cptab *tab, int qa, int qb, gr_err *e) {
   vclass *cl = &j->cls[c];
   tmpl *t = cl->t;
   int v = cl->rep;
@@ -697,7 +840,7 @@ static int build_layers(gr_job *j, int c, const gr_field *f, int qa, int qb, gr_
   voxel_ijk(j, v, &i, &jj, &k);
   int g0 = row_first_layer(j, k);
   double L = j->o.cell, h = j->o.slice_cell;
-  double m = ceil((j->o.beam_offset + (j->o.contours + 1) * j->o.hatch + 2 * h) / h) * h;
+  double m = window_margin(j);
   gr_slice_opts so = gr_slice_defaults();
   so.lo[0] = o[0] - m;
   so.lo[1] = o[1] - m;
@@ -725,7 +868,7 @@ static int build_layers(gr_job *j, int c, const gr_field *f, int qa, int qb, gr_
     tl->paths = gr_layer_new(0);
     if (!tl->section || !tl->region || !tl->paths) { rc = gr_fail(e, GR_EMEM, "out of memory"); break; }
     double z = layer_mid(j, g0 + t->j0 + q);
-    if ((rc = gr_slice_field(f, z, &so, tl->section, e))) break;
+    if ((rc = tab ? slice_shared(j, tab, f, o, q, z, &so, tl->section, e) : gr_slice_field(f, z, &so, tl->section, e))) break;
     gr_rings_translate(tl->section, -o[0], -o[1]);
     tl->area = area_in_box(tl->section, box_lo, box_hi);
     /* contours and thin-wall scans of the window, clipped to the voxel */
@@ -1044,7 +1187,7 @@ static void layer_account(gr_job *j, const gr_layer *l, gr_job_stats *st) {
     nb[la]++;
     size_t step = bk->shape == GR_SEGMENTS ? 2 : bk->n;
     for (size_t q = 0; q + 1 < bk->n; q += step) {
-      double d = hypot(p[2 * q] - px[la], p[2 * q + 1] - py[la]);
+      double d = gr_len2d(p[2 * q] - px[la], p[2 * q + 1] - py[la]);
       if (have[la] && d > 1e-9) { nj[la]++; jl[la] += d; }
       have[la] = 1;
       size_t last = bk->shape == GR_SEGMENTS ? q + 1 : bk->n - 1;
@@ -1052,10 +1195,10 @@ static void layer_account(gr_job *j, const gr_layer *l, gr_job_stats *st) {
       py[la] = p[2 * last + 1];
       if (bk->shape == GR_SEGMENTS) {
         st->vectors[k]++;
-        len[la][k] += hypot(p[2 * q + 2] - p[2 * q], p[2 * q + 3] - p[2 * q + 1]);
+        len[la][k] += gr_len2d(p[2 * q + 2] - p[2 * q], p[2 * q + 3] - p[2 * q + 1]);
       } else {
         st->vectors[k] += bk->n - 1;
-        for (size_t r = 0; r + 1 < bk->n; r++) len[la][k] += hypot(p[2 * r + 2] - p[2 * r], p[2 * r + 3] - p[2 * r + 1]);
+        for (size_t r = 0; r + 1 < bk->n; r++) len[la][k] += gr_len2d(p[2 * r + 2] - p[2 * r], p[2 * r + 3] - p[2 * r + 1]);
       }
     }
   }
@@ -1381,6 +1524,9 @@ typedef struct build_arg {
   int ja, jb;        /* local layer range, jb < 0: all */
   int *wc, *wa, *wb; /* work items: class, template layers [wa, wb) */
   int nwork;
+  cptab *tab;        /* shared closest points of the classes in work, or NULL */
+  int *fc, *fref;    /* field items: class, reference class or -1 */
+  double *fextra;    /* field items: extra margin of H, mm */
 } build_arg;
 
 /* Phase 1, per class: take the template from the knowledge base, or make the
@@ -1423,7 +1569,25 @@ static int prepare_item(gr_job *j, int item, void *arg_, gr_err *e) {
   if (jb > nl) jb = nl;
   int rc = template_alloc(j, c, ja, jb, e);
   if (rc) return rc;
-  cl->field = voxel_field(j, cl->rep, cl->trimmed, e);
+  cl->need = 1;
+  return GR_OK;
+}
+
+/* Phase 1b, per class to build: its field, sharing H with its group's
+ * reference class (fref >= 0, whose field exists) or its own. */
+static int field_item(gr_job *j, int item, void *arg_, gr_err *e) {
+  build_arg *a = arg_;
+  int c = a->fc[item], ref = a->fref[item];
+  vclass *cl = &j->cls[c];
+  double o[3], oref[3], sh[3] = {0, 0, 0};
+  if (ref >= 0) {
+    voxel_origin(j, cl->rep, o);
+    voxel_origin(j, j->cls[ref].rep, oref);
+    for (int k = 0; k < 3; k++) sh[k] = o[k] - oref[k];
+  }
+  /* a reference's H reaches a quarter cell further, for thicker members */
+  cl->field = voxel_field(j, cl->rep, cl->trimmed, ref >= 0 ? j->cls[ref].field : NULL, sh,
+                          a->fextra[item], e);
   if (!cl->field) return e->code ? e->code : GR_EMEM;
   const char *w = gr_offset_warning(cl->field);
   if (w[0]) {
@@ -1431,7 +1595,6 @@ static int prepare_item(gr_job *j, int item, void *arg_, gr_err *e) {
     snprintf(j->warning, sizeof j->warning, "%s", w);
     pthread_mutex_unlock(a->kbmu);
   }
-  cl->need = 1;
   return GR_OK;
 }
 
@@ -1439,7 +1602,13 @@ static int prepare_item(gr_job *j, int item, void *arg_, gr_err *e) {
 static int layers_item(gr_job *j, int item, void *arg_, gr_err *e) {
   build_arg *a = arg_;
   int c = a->wc[item];
-  return build_layers(j, c, j->cls[c].field, a->wa[item], a->wb[item], e);
+  return build_layers(j, c, j->cls[c].field, a->tab, a->wa[item], a->wb[item], e);
+}
+
+/* Phase 2a, per table layer: the shared closest points. */
+static int table_item(gr_job *j, int item, void *arg_, gr_err *e) {
+  build_arg *a = arg_;
+  return cptab_layer(j, a->tab, item, e);
 }
 
 /* Phase 3, per class: drop the field, store the template. */
@@ -1466,15 +1635,29 @@ static int store_item(gr_job *j, int item, void *arg_, gr_err *e) {
   return GR_OK;
 }
 
-/* Build (or load) the templates of the classes in a->items. */
-static int build_classes(gr_job *j, build_arg *a, const gr_job_run_opts *r, const char *stage, gr_err *e) {
-  int rc = parallel_for(j, a->nitems, prepare_item, a, j->o.threads, NULL, NULL, stage, e);
-  /* chunks of 5 layers: enough work items for every core */
+/* Group key of a class for shared closest points ("" = not shareable). */
+static void share_key(const gr_job *j, int c, char *key, size_t n) {
+  const vclass *cl = &j->cls[c];
+  key[0] = 0;
+  if (!cl->need || cl->trimmed || !j->o.exact || !j->o.share || !grid_period(j)) return;
+  const gr_spec *sp = &j->specs[j->vspec[cl->rep]];
+  int i, jj, k;
+  voxel_ijk(j, cl->rep, &i, &jj, &k);
+  double o[3];
+  voxel_origin(j, cl->rep, o);
+  double phase = layer_mid(j, row_first_layer(j, k)) - o[2];
+  snprintf(key, n, "%d %.9g %d %d %.9g %d %d", sp->surface, sp->level, sp->network, sp->side,
+           round(phase / 1e-9) * 1e-9, cl->t->nl, cl->t->j0);
+}
+
+/* Work items for the classes cs[0..nc): chunks of 5 layers, enough for every core. */
+static int make_work(build_arg *a, const gr_job *j, const int *cs, int nc, gr_err *e) {
   size_t cap = 0;
+  free(a->wc); free(a->wa); free(a->wb);
+  a->wc = a->wa = a->wb = NULL;
   a->nwork = 0;
-  for (int q = 0; q < a->nitems && rc == GR_OK; q++) {
-    vclass *cl = &j->cls[a->items[q]];
-    if (!cl->need) continue;
+  for (int q = 0; q < nc; q++) {
+    const vclass *cl = &j->cls[cs[q]];
     for (int s = 0; s < cl->t->nl; s += 5) {
       if ((size_t)a->nwork + 1 > cap) {
         cap = cap ? 2 * cap : 64;
@@ -1482,16 +1665,115 @@ static int build_classes(gr_job *j, build_arg *a, const gr_job_run_opts *r, cons
         if (wc) a->wc = wc;
         if (wa) a->wa = wa;
         if (wb) a->wb = wb;
-        if (!wc || !wa || !wb) { rc = gr_fail(e, GR_EMEM, "out of memory"); break; }
+        if (!wc || !wa || !wb) return gr_fail(e, GR_EMEM, "out of memory");
       }
-      a->wc[a->nwork] = a->items[q];
+      a->wc[a->nwork] = cs[q];
       a->wa[a->nwork] = s;
       a->wb[a->nwork] = s + 5 < cl->t->nl ? s + 5 : cl->t->nl;
       a->nwork++;
     }
   }
-  if (rc == GR_OK)
-    rc = parallel_for(j, a->nwork, layers_item, a, j->o.threads, r ? r->progress : NULL, r ? r->progress_ud : NULL, stage, e);
+  return GR_OK;
+}
+
+/* The shared closest points of a group whose first class is ref. */
+static cptab *cptab_new(gr_job *j, const int *cs, int nc, build_arg *a, gr_err *e) {
+  cptab *t = calloc(1, sizeof *t);
+  if (!t) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
+  t->P = grid_period(j);
+  t->ref = cs[0];
+  const vclass *cl = &j->cls[t->ref];
+  voxel_origin(j, cl->rep, t->oref);
+  double m = window_margin(j);
+  t->lo[0] = t->oref[0] - m;
+  t->lo[1] = t->oref[1] - m;
+  double tmax = 0;
+  for (int q = 0; q < nc; q++) tmax = fmax(tmax, gr_offset_max_thickness(j->cls[cs[q]].field));
+  /* nodes of crossing edges lie within T + h of H; beyond, only signs matter */
+  t->dmax = 1.2 * tmax + 2 * j->o.slice_cell;
+  size_t np = (size_t)t->P * t->P * cl->t->nl;
+  t->q = malloc(3 * np * sizeof *t->q);
+  t->sd = malloc(np * sizeof *t->sd);
+  if (!t->q || !t->sd) { cptab_free(t); return gr_fail(e, GR_EMEM, "out of memory"), NULL; }
+  a->tab = t;
+  if (parallel_for(j, cl->t->nl, table_item, a, j->o.threads, NULL, NULL, "closest points", e)) {
+    a->tab = NULL;
+    cptab_free(t);
+    return NULL;
+  }
+  return t;
+}
+
+/* Progress of a part of the work, reported as a share of the whole. */
+typedef struct prog_part { const gr_job_run_opts *r; long base, span, total; } prog_part;
+static void prog_part_fn(void *ud, const char *stage, long d, long n) {
+  const prog_part *p = ud;
+  p->r->progress(p->r->progress_ud, stage, p->base + (n > 0 ? d * p->span / n : p->span), p->total);
+}
+
+/* Build (or load) the templates of the classes in a->items: classes that
+ * share closest points group by group, the others each on its own. */
+static int build_classes(gr_job *j, build_arg *a, const gr_job_run_opts *r, const char *stage, gr_err *e) {
+  int rc = parallel_for(j, a->nitems, prepare_item, a, j->o.threads, NULL, NULL, stage, e);
+  int n = a->nitems;
+  /* groups: gid[q] = index (into items) of the group's first class, -1 = none */
+  int *cs = malloc((n + 1) * sizeof *cs), *gid = malloc((n + 1) * sizeof *gid);
+  a->fc = malloc((n + 1) * sizeof *a->fc);
+  a->fref = malloc((n + 1) * sizeof *a->fref);
+  a->fextra = malloc((n + 1) * sizeof *a->fextra);
+  char (*keys)[128] = malloc((n + 1) * sizeof *keys);
+  if (!cs || !gid || !a->fc || !a->fref || !a->fextra || !keys) rc = rc ? rc : gr_fail(e, GR_EMEM, "out of memory");
+  long total = 0, base = 0;
+  for (int q = 0; q < n && rc == GR_OK; q++) {
+    gid[q] = -1;
+    if (!j->cls[a->items[q]].need) continue;
+    total += j->cls[a->items[q]].t->nl;
+    share_key(j, a->items[q], keys[q], sizeof keys[q]);
+    if (!keys[q][0]) continue;
+    for (int p = 0; p < q && gid[q] < 0; p++)
+      if (gid[p] == p && strcmp(keys[p], keys[q]) == 0) gid[q] = p;
+    if (gid[q] < 0) gid[q] = q;
+  }
+  /* fields: group references and unshared classes, then the members */
+  for (int pass = 0; pass < 2 && rc == GR_OK; pass++) {
+    int nf = 0;
+    for (int q = 0; q < n; q++) {
+      if (!j->cls[a->items[q]].need) continue;
+      int member = gid[q] >= 0 && gid[q] != q;
+      if (member != pass) continue;
+      a->fc[nf] = a->items[q];
+      a->fref[nf] = member ? a->items[gid[q]] : -1;
+      a->fextra[nf] = gid[q] == q ? 0.25 * j->o.cell : 0;
+      nf++;
+    }
+    rc = parallel_for(j, nf, field_item, a, j->o.threads, NULL, NULL, stage, e);
+  }
+  for (int q = 0; q < n && rc == GR_OK; q++) {
+    if (!j->cls[a->items[q]].need || (gid[q] >= 0 && gid[q] != q)) continue;
+    int nc = 0;
+    if (gid[q] < 0) cs[nc++] = a->items[q];
+    else
+      for (int p = q; p < n; p++)
+        if (gid[p] == q) cs[nc++] = a->items[p];
+    cptab *t = NULL;
+    if (gid[q] >= 0 && !(t = cptab_new(j, cs, nc, a, e))) { rc = e->code ? e->code : GR_EMEM; break; }
+    a->tab = t;
+    long nl = 0;
+    for (int p = 0; p < nc; p++) nl += j->cls[cs[p]].t->nl;
+    prog_part pp = {r, base, nl, total};
+    int prog = r && r->progress;
+    if ((rc = make_work(a, j, cs, nc, e)) == GR_OK)
+      rc = parallel_for(j, a->nwork, layers_item, a, j->o.threads, prog ? prog_part_fn : NULL, prog ? &pp : NULL, stage, e);
+    a->tab = NULL;
+    cptab_free(t);
+    base += nl;
+  }
+  free(keys);
+  free(gid);
+  free(a->fc); free(a->fref); free(a->fextra);
+  a->fc = a->fref = NULL;
+  a->fextra = NULL;
+  free(cs);
   gr_err e2;
   gr_err_clear(&e2);
   int rc2 = parallel_for(j, a->nitems, store_item, a, 1, NULL, NULL, stage, &e2);

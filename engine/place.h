@@ -84,6 +84,8 @@ typedef struct gr_job_opts {
   int threads;          /* worker threads (>= 1) */
   int verify;           /* 1: verify() every template layer (pore/overmelt) */
   int nlasers;          /* lasers (the machine may replace it) */
+  int share;            /* 1: classes differing only in T share closest points
+                           (same result, much faster); 0: each class alone */
 } gr_job_opts;
 gr_job_opts gr_job_defaults(void);
 

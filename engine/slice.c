@@ -5,9 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Evaluate a 2-D scalar function at n points (negative = inside). */
-typedef int (*ms_fn)(void *ud, size_t n, const double *x, const double *y,
-                     double *out, gr_err *e);
+typedef gr_slice_fn ms_fn;
 
 #define MS_CHUNK 65536
 #define MS_MAX_NODES ((size_t)1 << 27)
@@ -49,45 +47,56 @@ static int eval_pts(ms_fn fn, void *ud, size_t n, const double *x,
   return GR_OK;
 }
 
-/* Batched Illinois (modified regula falsi) root finding on n segments
- * P_k + t (Q_k - P_k), t in [0,1], with fp < 0 <= fq given. Each pass
- * evaluates fn once on all unconverged segments. Stops when the bracket is
- * shorter than tol (mm), so the returned point is within tol of a root.
+/* Batched root finding on n segments P_k + t (Q_k - P_k), t in [0,1], with
+ * fp < 0 <= fq given. Each pass evaluates once on all unconverged segments.
+ * Without gfn: Illinois (modified regula falsi), stopping when the bracket is
+ * shorter than tol (mm), so the returned point is within tol of a root. With
+ * gfn (value and gradient): Newton steps kept inside the bracket (Illinois
+ * where a step leaves it), stopping when the Newton step is below tol.
  * P, Q: 2n coordinates; out: 2n coordinates. */
-static int roots_batch(ms_fn fn, void *ud, size_t n, const double *P,
+static int roots_batch(ms_fn fn, gr_slice_grad_fn gfn, void *ud, size_t n, const double *P,
                        const double *Q, const double *fp, const double *fq,
                        int refine, double tol, double *out, gr_err *e) {
   if (n == 0) return GR_OK;
   double *ta = malloc(n * sizeof *ta), *tb = malloc(n * sizeof *tb);
   double *fa = malloc(n * sizeof *fa), *fb = malloc(n * sizeof *fb);
-  double *len = malloc(n * sizeof *len);
+  double *len = malloc(n * sizeof *len), *tn = malloc(n * sizeof *tn);
   int *side = calloc(n, sizeof *side);
   size_t *act = malloc(n * sizeof *act);
   double *qx = malloc(n * sizeof *qx), *qy = malloc(n * sizeof *qy);
   double *qt = malloc(n * sizeof *qt), *qf = malloc(n * sizeof *qf);
+  double *gx = malloc(n * sizeof *gx), *gy = malloc(n * sizeof *gy);
   int rc = GR_OK;
-  if (!ta || !tb || !fa || !fb || !len || !side || !act || !qx || !qy || !qt || !qf) {
+  if (!ta || !tb || !fa || !fb || !len || !tn || !side || !act || !qx || !qy || !qt || !qf || !gx || !gy) {
     rc = gr_fail(e, GR_EMEM, "out of memory refining %zu crossings", n);
     goto done;
   }
   size_t na = 0;
   for (size_t k = 0; k < n; k++) {
     ta[k] = 0; tb[k] = 1; fa[k] = fp[k]; fb[k] = fq[k];
+    tn[k] = NAN;
     len[k] = hypot(Q[2 * k] - P[2 * k], Q[2 * k + 1] - P[2 * k + 1]);
     if (refine && len[k] > tol && fb[k] != 0) act[na++] = k;
   }
   for (int it = 0; it < 200 && na > 0; it++) {
     for (size_t i = 0; i < na; i++) {
       size_t k = act[i];
-      double t = (ta[k] * fb[k] - tb[k] * fa[k]) / (fb[k] - fa[k]);
-      double w = tb[k] - ta[k];
-      if (!(t > ta[k] + 1e-3 * w * 0 && t < tb[k]) || !isfinite(t)) t = 0.5 * (ta[k] + tb[k]);
+      double t = tn[k];
+      if (!(t > ta[k] && t < tb[k])) t = (ta[k] * fb[k] - tb[k] * fa[k]) / (fb[k] - fa[k]);
+      if (!(t > ta[k] && t < tb[k]) || !isfinite(t)) t = 0.5 * (ta[k] + tb[k]);
       if (it > 100) t = 0.5 * (ta[k] + tb[k]); /* safety net: plain bisection */
       qt[i] = t;
       qx[i] = P[2 * k] + t * (Q[2 * k] - P[2 * k]);
       qy[i] = P[2 * k + 1] + t * (Q[2 * k + 1] - P[2 * k + 1]);
     }
-    rc = eval_pts(fn, ud, na, qx, qy, qf, e);
+    if (gfn) {
+      for (size_t s = 0; s < na && !rc; s += MS_CHUNK) {
+        size_t m = na - s < MS_CHUNK ? na - s : MS_CHUNK;
+        rc = gfn(ud, m, qx + s, qy + s, qf + s, gx + s, gy + s, e);
+      }
+    } else {
+      rc = eval_pts(fn, ud, na, qx, qy, qf, e);
+    }
     if (rc) goto done;
     size_t keep = 0;
     for (size_t i = 0; i < na; i++) {
@@ -103,6 +112,12 @@ static int roots_batch(ms_fn fn, void *ud, size_t n, const double *P,
         side[k] = 1;
       }
       if (f == 0) { ta[k] = tb[k] = t; continue; }
+      if (gfn) {
+        double dt = gx[i] * (Q[2 * k] - P[2 * k]) + gy[i] * (Q[2 * k + 1] - P[2 * k + 1]);
+        double step = dt > 0 ? -f / dt : NAN;
+        tn[k] = t + step;
+        if (fabs(step) * len[k] < tol && tn[k] >= ta[k] && tn[k] <= tb[k]) { ta[k] = tb[k] = tn[k]; continue; }
+      }
       if ((tb[k] - ta[k]) * len[k] > tol) act[keep++] = k;
     }
     na = keep;
@@ -122,8 +137,8 @@ static int roots_batch(ms_fn fn, void *ud, size_t n, const double *P,
     out[2 * k + 1] = P[2 * k + 1] + t * (Q[2 * k + 1] - P[2 * k + 1]);
   }
 done:
-  free(ta); free(tb); free(fa); free(fb); free(len); free(side); free(act);
-  free(qx); free(qy); free(qt); free(qf);
+  free(ta); free(tb); free(fa); free(fb); free(len); free(tn); free(side); free(act);
+  free(qx); free(qy); free(qt); free(qf); free(gx); free(gy);
   return rc;
 }
 
@@ -180,7 +195,7 @@ static int emit_ring(gr_rings *out, double *xy, size_t n) {
  * fn, saddles decided by fn at the cell centre, segments oriented with the
  * inside on the left and chained by edge id into closed rings (appended to
  * out, not nested). */
-static int ms_contour(const ms_grid *g, ms_fn fn, void *ud, int refine,
+static int ms_contour(const ms_grid *g, ms_fn fn, gr_slice_grad_fn gfn, void *ud, int refine,
                       double tol, gr_rings *out, gr_err *e) {
   int NX = g->nx + 2, NY = g->ny + 2;
   size_t nedge = 2 * (size_t)NX * NY;
@@ -225,7 +240,7 @@ static int ms_contour(const ms_grid *g, ms_fn fn, void *ud, int refine,
   pt = malloc(2 * ncr * sizeof *pt);
   next = malloc(ncr * sizeof *next);
   if (!pt || !next) { rc = gr_fail(e, GR_EMEM, "out of memory: %zu crossings", ncr); goto done; }
-  rc = roots_batch(fn, ud, ncr, P, Q, fp, fq, refine, tol, pt, e);
+  rc = roots_batch(fn, gfn, ud, ncr, P, Q, fp, fq, refine, tol, pt, e);
   if (rc) goto done;
   /* 2. saddle cells: centre value on the true function */
   for (int J = 0; J + 1 < NY; J++)
@@ -318,11 +333,14 @@ static int on_border(const win *w, const double *a, const double *b) {
  * normal line through the chord midpoint (bracket +-half the chord); where
  * it lies more than chord_tol from the midpoint, insert it. Repeats until no
  * insertion (at most 12 passes). Rings in `r` are rewritten. */
-static int chord_refine(gr_rings *r, ms_fn fn, void *ud, double tol,
+static int chord_refine(gr_rings *r, ms_fn fn, gr_slice_grad_fn gfn, void *ud, double tol,
                         double chord_tol, const win *w, gr_err *e) {
   int rc = GR_OK;
   gr_rings *nr = gr_rings_new();
-  if (!nr) return gr_fail(e, GR_EMEM, "out of memory refining chords");
+  /* ok[i]: the chord from point i was checked (only new chords are checked
+   * in later passes) */
+  unsigned char *ok = calloc(r->npts + 1, 1);
+  if (!nr || !ok) { gr_rings_free(nr); free(ok); return gr_fail(e, GR_EMEM, "out of memory refining chords"); }
   for (int pass = 0; pass < 12; pass++) {
     size_t n = r->npts;
     double *A = malloc(2 * n * sizeof *A + 1), *B = malloc(2 * n * sizeof *B + 1);
@@ -332,6 +350,7 @@ static int chord_refine(gr_rings *r, ms_fn fn, void *ud, double tol,
     double *root = malloc(2 * n * sizeof *root + 1);
     int *ins = calloc(n + 1, sizeof *ins);
     size_t *seg = malloc(n * sizeof *seg + 1);
+    unsigned char *ok2 = NULL;
     size_t nins = 0;
     if (!A || !B || !ax || !ay || !bx || !by || !fa || !fb || !root || !ins || !seg) {
       rc = gr_fail(e, GR_EMEM, "out of memory refining chords");
@@ -342,6 +361,7 @@ static int chord_refine(gr_rings *r, ms_fn fn, void *ud, double tol,
       size_t len = gr_ring_len(r, i), st = r->start[i];
       const double *p = gr_ring_xy(r, i);
       for (size_t k = 0; k < len; k++) {
+        if (ok[st + k]) continue;
         const double *a = p + 2 * k, *b = p + 2 * ((k + 1) % len);
         if (on_border(w, a, b)) continue;
         double dx = b[0] - a[0], dy = b[1] - a[1], L = hypot(dx, dy);
@@ -355,6 +375,26 @@ static int chord_refine(gr_rings *r, ms_fn fn, void *ud, double tol,
       }
     }
     if (m == 0) goto pass_done;
+    if (gfn) {
+      /* one Newton estimate at each midpoint: chords whose zero set lies
+       * well within chord_tol need no root finding */
+      double *mx = A, *my = A + n, *gx = B, *gy = B + n;
+      for (size_t k = 0; k < m; k++) { mx[k] = 0.5 * (ax[k] + bx[k]); my[k] = 0.5 * (ay[k] + by[k]); }
+      for (size_t s = 0; s < m && !rc; s += MS_CHUNK) {
+        size_t c = m - s < MS_CHUNK ? m - s : MS_CHUNK;
+        rc = gfn(ud, c, mx + s, my + s, root + s, gx + s, gy + s, e);
+      }
+      if (rc) goto pass_done;
+      size_t q = 0;
+      for (size_t k = 0; k < m; k++) {
+        double nx = bx[k] - ax[k], ny = by[k] - ay[k], nl = hypot(nx, ny);
+        double dn = (gx[k] * nx + gy[k] * ny) / nl;
+        if (dn > 0.5 && fabs(root[k] / dn) < 0.25 * chord_tol) continue;
+        ax[q] = ax[k]; ay[q] = ay[k]; bx[q] = bx[k]; by[q] = by[k]; seg[q] = seg[k];
+        q++;
+      }
+      m = q;
+    }
     if ((rc = eval_pts(fn, ud, m, ax, ay, fa, e)) || (rc = eval_pts(fn, ud, m, bx, by, fb, e))) goto pass_done;
     size_t q = 0;
     for (size_t k = 0; k < m; k++) {
@@ -364,7 +404,7 @@ static int chord_refine(gr_rings *r, ms_fn fn, void *ud, double tol,
       fa[q] = fa[k]; fb[q] = fb[k]; seg[q] = seg[k];
       q++;
     }
-    rc = roots_batch(fn, ud, q, A, B, fa, fb, 1, tol, root, e);
+    rc = roots_batch(fn, gfn, ud, q, A, B, fa, fb, 1, tol, root, e);
     if (rc) goto pass_done;
     /* mark insertions: ins[global point index] = 1 + candidate index */
     for (size_t k = 0; k < q; k++) {
@@ -372,28 +412,35 @@ static int chord_refine(gr_rings *r, ms_fn fn, void *ud, double tol,
       if (hypot(root[2 * k] - mx, root[2 * k + 1] - my) > chord_tol) { ins[seg[k]] = (int)k + 1; nins++; }
     }
     if (nins) {
+      ok2 = calloc(n + nins + 1, 1);
+      if (!ok2) { rc = gr_fail(e, GR_EMEM, "out of memory refining chords"); goto pass_done; }
       gr_rings_clear(nr);
+      size_t np = 0;
       for (size_t i = 0; i < r->nrings && !rc; i++) {
         size_t len = gr_ring_len(r, i), st = r->start[i];
         const double *p = gr_ring_xy(r, i);
         for (size_t k = 0; k < len && !rc; k++) {
           rc = gr_rings_point(nr, p[2 * k], p[2 * k + 1]);
+          ok2[np++] = !ins[st + k];
           if (!rc && ins[st + k]) {
             size_t c = (size_t)ins[st + k] - 1;
             rc = gr_rings_point(nr, root[2 * c], root[2 * c + 1]);
+            ok2[np++] = 0;
           }
         }
         if (!rc) rc = gr_rings_close(nr);
       }
       if (rc) rc = gr_fail(e, GR_EMEM, "out of memory refining chords");
       else rc = gr_rings_copy(r, nr) ? gr_fail(e, GR_EMEM, "out of memory refining chords") : GR_OK;
+      if (!rc) { free(ok); ok = ok2; ok2 = NULL; }
     }
   pass_done:
     free(A); free(B); free(ax); free(ay); free(bx); free(by); free(fa); free(fb);
-    free(root); free(ins); free(seg);
+    free(root); free(ins); free(seg); free(ok2);
     if (rc || nins == 0) break;
   }
   gr_rings_free(nr);
+  free(ok);
   return rc;
 }
 
@@ -427,21 +474,64 @@ static int check_window(const double lo[2], const double hi[2], double cell,
   return GR_OK;
 }
 
+/* Grid geometry of a window: nx x ny nodes spanning lo..hi. */
+static ms_grid window_grid(const gr_slice_opts *o) {
+  int nx = (int)ceil((o->hi[0] - o->lo[0]) / o->cell) + 1;
+  int ny = (int)ceil((o->hi[1] - o->lo[1]) / o->cell) + 1;
+  ms_grid g = {nx, ny, o->lo[0], o->lo[1], (o->hi[0] - o->lo[0]) / (nx - 1),
+               (o->hi[1] - o->lo[1]) / (ny - 1), NULL};
+  return g;
+}
+
+static int check_opts(const gr_slice_opts *o, gr_err *e) {
+  int rc = check_window(o->lo, o->hi, o->cell, o->tol, e);
+  if (rc) return rc;
+  if (o->chord_tol < 0 || !isfinite(o->chord_tol))
+    return gr_fail(e, GR_EARG, "chord_tol must be >= 0, got %g", o->chord_tol);
+  return GR_OK;
+}
+
+void gr_slice_grid_size(const gr_slice_opts *o, int *nx, int *ny, double *hx, double *hy) {
+  ms_grid g = window_grid(o);
+  *nx = g.nx;
+  *ny = g.ny;
+  *hx = g.hx;
+  *hy = g.hy;
+}
+
+/* Contour the sampled grid g (values set) with fn for refinement, chords and nesting. */
+static int slice_sampled(ms_grid *g, const gr_slice_opts *o, ms_fn fn, gr_slice_grad_fn gfn,
+                         void *ud, gr_rings *out, gr_err *e) {
+  gr_rings_clear(out);
+  int rc = ms_contour(g, fn, gfn, ud, o->refine, o->tol, out, e);
+  if (!rc && o->chord_tol > 0) {
+    win w = {1, {o->lo[0], o->lo[1]}, {o->hi[0], o->hi[1]}};
+    rc = chord_refine(out, fn, gfn, ud, o->tol, o->chord_tol, &w, e);
+  }
+  if (!rc) rc = gr_rings_nest(out, e);
+  return rc;
+}
+
+int gr_slice_grid(const double *v, const gr_slice_opts *o, gr_slice_fn fn,
+                  gr_slice_grad_fn gfn, void *ud, gr_rings *out, gr_err *e) {
+  if (!o || !v || !fn) return gr_fail(e, GR_EARG, "slice grid: options, values and function are needed");
+  int rc = check_opts(o, e);
+  if (rc) return rc;
+  ms_grid g = window_grid(o);
+  g.v = v;
+  return slice_sampled(&g, o, fn, gfn, ud, out, e);
+}
+
 int gr_slice_field(const gr_field *f, double z, const gr_slice_opts *o,
                    gr_rings *out, gr_err *e) {
   gr_slice_opts d = gr_slice_defaults();
   if (!o) o = &d;
   if (!f) return gr_fail(e, GR_EARG, "field must not be NULL");
   if (!isfinite(z)) return gr_fail(e, GR_EARG, "z must be finite, got %g", z);
-  int rc = check_window(o->lo, o->hi, o->cell, o->tol, e);
+  int rc = check_opts(o, e);
   if (rc) return rc;
-  if (o->chord_tol < 0 || !isfinite(o->chord_tol))
-    return gr_fail(e, GR_EARG, "chord_tol must be >= 0, got %g", o->chord_tol);
-  gr_rings_clear(out);
-  int nx = (int)ceil((o->hi[0] - o->lo[0]) / o->cell) + 1;
-  int ny = (int)ceil((o->hi[1] - o->lo[1]) / o->cell) + 1;
-  ms_grid g = {nx, ny, o->lo[0], o->lo[1], (o->hi[0] - o->lo[0]) / (nx - 1),
-               (o->hi[1] - o->lo[1]) / (ny - 1), NULL};
+  ms_grid g = window_grid(o);
+  int nx = g.nx, ny = g.ny;
   size_t nn = (size_t)nx * ny;
   field_ud u = {f, z, malloc(MS_CHUNK * sizeof(double))};
   double *v = malloc(nn * sizeof *v);
@@ -459,12 +549,7 @@ int gr_slice_field(const gr_field *f, double z, const gr_slice_opts *o,
   }
   if (rc) goto done;
   g.v = v;
-  rc = ms_contour(&g, field_fn, &u, o->refine, o->tol, out, e);
-  if (!rc && o->chord_tol > 0) {
-    win w = {1, {o->lo[0], o->lo[1]}, {o->hi[0], o->hi[1]}};
-    rc = chord_refine(out, field_fn, &u, o->tol, o->chord_tol, &w, e);
-  }
-  if (!rc) rc = gr_rings_nest(out, e);
+  rc = slice_sampled(&g, o, field_fn, NULL, &u, out, e);
 done:
   free(u.zb); free(v); free(xs); free(ys);
   return rc;
@@ -632,6 +717,31 @@ static int pd_sample(const poly_dist *d, const ms_grid *g, double *v,
                      double rmax, gr_err *e) {
   double *xs = malloc((d->ne + 1) * sizeof *xs);
   if (!xs) return gr_fail(e, GR_EMEM, "out of memory: %zu edges", d->ne);
+  /* squared distances: each edge updates the nodes within rmax of it */
+  size_t nn = (size_t)g->nx * g->ny;
+  for (size_t k = 0; k < nn; k++) v[k] = INFINITY;
+  for (size_t ed = 0; ed < d->ne; ed++) {
+    const double *p = d->ab + 4 * ed;
+    double ex = p[2] - p[0], ey = p[3] - p[1], L2 = ex * ex + ey * ey;
+    int i0 = (int)floor((fmin(p[0], p[2]) - rmax - g->x0) / g->hx), i1 = (int)ceil((fmax(p[0], p[2]) + rmax - g->x0) / g->hx);
+    int j0 = (int)floor((fmin(p[1], p[3]) - rmax - g->y0) / g->hy), j1 = (int)ceil((fmax(p[1], p[3]) + rmax - g->y0) / g->hy);
+    if (i0 < 0) i0 = 0;
+    if (j0 < 0) j0 = 0;
+    if (i1 > g->nx - 1) i1 = g->nx - 1;
+    if (j1 > g->ny - 1) j1 = g->ny - 1;
+    for (int j = j0; j <= j1; j++) {
+      double y = g->y0 + j * g->hy;
+      double *row = v + (size_t)g->nx * j;
+      for (int i = i0; i <= i1; i++) {
+        double x = g->x0 + i * g->hx;
+        double t = L2 > 0 ? ((x - p[0]) * ex + (y - p[1]) * ey) / L2 : 0;
+        t = t < 0 ? 0 : t > 1 ? 1 : t;
+        double qx = p[0] + t * ex - x, qy = p[1] + t * ey - y, d2 = qx * qx + qy * qy;
+        if (d2 < row[i]) row[i] = d2;
+      }
+    }
+  }
+  /* signs by scan-line parity */
   for (int j = 0; j < g->ny; j++) {
     double y = g->y0 + j * g->hy;
     size_t nc = 0;
@@ -645,11 +755,9 @@ static int pd_sample(const poly_dist *d, const ms_grid *g, double *v,
       double x = g->x0 + i * g->hx;
       while (c < nc && xs[c] <= x) c++;
       int in = c & 1;
-      size_t ed;
-      double t, d2 = pd_nearest(d, x, y, rmax, &ed, &t);
-      double dist = isfinite(d2) ? sqrt(d2) : rmax;
-      if (dist > rmax) dist = rmax;
-      v[i + (size_t)g->nx * j] = (in ? -dist : dist) + d->b;
+      double *vv = v + i + (size_t)g->nx * j;
+      double dist = *vv <= rmax * rmax ? sqrt(*vv) : rmax;
+      *vv = (in ? -dist : dist) + d->b;
     }
   }
   free(xs);
@@ -706,11 +814,11 @@ int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
   if (!rc) {
     g.v = v;
     gr_rings_clear(out);
-    rc = ms_contour(&g, pd_fn, &d, 1, tol, out, e);
+    rc = ms_contour(&g, pd_fn, NULL, &d, 1, tol, out, e);
   }
   if (!rc && chord_tol > 0) {
     win w = {0, {0, 0}, {0, 0}};
-    rc = chord_refine(out, pd_fn, &d, tol, chord_tol, &w, e);
+    rc = chord_refine(out, pd_fn, NULL, &d, tol, chord_tol, &w, e);
   }
   if (!rc) rc = gr_rings_nest(out, e);
   free(v);

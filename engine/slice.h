@@ -30,6 +30,22 @@ int gr_slice_check_res(double cell, double hatch, gr_err *e);
 int gr_slice_field(const gr_field *f, double z, const gr_slice_opts *o,
                    gr_rings *out, gr_err *e);
 
+/* A scalar function of the plane at n points (negative = inside). */
+typedef int (*gr_slice_fn)(void *ud, size_t n, const double *x, const double *y,
+                           double *out, gr_err *e);
+/* Value and in-plane gradient of such a function at n points. */
+typedef int (*gr_slice_grad_fn)(void *ud, size_t n, const double *x, const double *y,
+                                double *out, double *gx, double *gy, gr_err *e);
+/* The window's grid: nx x ny nodes at (lo[0] + i*hx, lo[1] + j*hy), the last
+ * ones exactly at hi. */
+void gr_slice_grid_size(const gr_slice_opts *o, int *nx, int *ny, double *hx, double *hy);
+/* As gr_slice_field from values already sampled at the window's grid nodes
+ * (v[i + nx*j]); fn, the true function, refines crossings, saddles and chords;
+ * gfn (optional: value and gradient) lets the refinement take Newton steps.
+ * For callers that sample faster than point by point (shared closest points). */
+int gr_slice_grid(const double *v, const gr_slice_opts *o, gr_slice_fn fn,
+                  gr_slice_grad_fn gfn, void *ud, gr_rings *out, gr_err *e);
+
 /* Mesh/plane intersection (the paper's Fig. 12 route): closed loops go to
  * `closed`, open polylines (the mesh boundary) to `open` as GR_OPEN blocks
  * (either may be NULL). Loops are oriented with the inside (the side the

@@ -14,6 +14,7 @@ local function job(o)
     cell = 2, cells = o.cells or { 2, 2, 1 }, layer = o.layer or 0.04, hatch = 0.05,
     pattern = o.pattern or "parallel", angle = o.angle or 45, rotation = o.rotation or 67,
     contours = o.contours or 1, res = 30, threads = 2, lasers = o.lasers or 1, mode = o.mode or "exact",
+    share = o.share,
   }
   local s = j:spec { surface = o.surface or "primitive", thickness = o.thickness or T }
   local c = o.cells or { 2, 2, 1 }
@@ -70,6 +71,20 @@ t.test("knowledge base output equals direct output", function()
   t.eq(a.vectors.hatch.count, b.vectors.hatch.count, "hatch vectors")
   t.eq(a.vectors.contour.count, b.vectors.contour.count, "contour vectors")
   compare_cli(tmp .. "/kb.cli", tmp .. "/direct.cli", 1e-3) -- quantisation 1 um, binary float32
+end)
+
+t.test("shared closest points give the sections of each class's own field", function()
+  -- three z-rows graded differently share H's closest points (share = true,
+  -- the default); share = false slices every class's offset field on its own
+  local o = { cells = { 1, 1, 3 }, thickness = "0.05 + 0.02*z + 0.01*sin(3*x)" }
+  local a = job(o):run { output = tmp .. "/shared.cli", format = "binary", kb = false, first = 1, last = 150 }
+  o.share = false
+  local b = job(o):run { output = tmp .. "/alone.cli", format = "binary", kb = false, first = 1, last = 150 }
+  t.eq(a.templates.unique, 3, "one class per z-row")
+  t.eq(a.vectors.contour.count, b.vectors.contour.count, "contour vectors")
+  t.eq(a.vectors.hatch.count, b.vectors.hatch.count, "hatch vectors")
+  -- both are exact to 1e-6 mm; the file holds float32 (about 1e-7 mm here)
+  compare_cli(tmp .. "/shared.cli", tmp .. "/alone.cli", 1e-5)
 end)
 
 t.test("a warm knowledge base builds nothing; a corrupt record is rebuilt", function()
