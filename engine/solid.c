@@ -303,10 +303,22 @@ static int self_intersections(const solid *s, gr_err *e) {
 }
 
 /* ---- evaluation ---- */
-/* Signed distance at p, and its gradient g (may be NULL). */
-static double solid_at(const solid *s, const double p[3], double *g) {
+/* Signed distance at p, and its gradient g (may be NULL). *hint is the
+ * unsigned distance at the point `from` (INFINITY: none), an upper bound of
+ * the distance at p by the triangle inequality that prunes the BVH search
+ * (batches are mostly runs of nearby points); it is updated to p. */
+static double solid_at(const solid *s, const double p[3], double *g, double from[3], double *hint) {
   gr_hit h;
-  gr_bvh_closest(s->bvh, p, INFINITY, &h);
+  double bound = INFINITY;
+  if (isfinite(*hint)) {
+    double r[3];
+    sub(p, from, r);
+    bound = (*hint + norm(r)) * (1 + 1e-9) + 1e-12;
+  }
+  gr_bvh_closest(s->bvh, p, bound, &h);
+  if (h.tri < 0) gr_bvh_closest(s->bvh, p, INFINITY, &h);
+  memcpy(from, p, 3 * sizeof *from);
+  *hint = h.dist;
   const gr_mesh *m = s->m;
   size_t t = (size_t)h.tri;
   const double *V[3] = {vtx(m, t, 0), vtx(m, t, 1), vtx(m, t, 2)};
@@ -341,9 +353,10 @@ static double solid_at(const solid *s, const double p[3], double *g) {
 static int solid_eval(void *ud, size_t n, const double *x, const double *y, const double *z, double *out,
                       gr_err *e) {
   (void)e;
+  double from[3], hint = INFINITY;
   for (size_t i = 0; i < n; i++) {
     double p[3] = {x[i], y[i], z[i]};
-    out[i] = solid_at(ud, p, NULL);
+    out[i] = solid_at(ud, p, NULL, from, &hint);
   }
   return GR_OK;
 }
@@ -351,9 +364,10 @@ static int solid_eval(void *ud, size_t n, const double *x, const double *y, cons
 static int solid_grad(void *ud, size_t n, const double *x, const double *y, const double *z, double *gx,
                       double *gy, double *gz, gr_err *e) {
   (void)e;
+  double from[3], hint = INFINITY;
   for (size_t i = 0; i < n; i++) {
     double p[3] = {x[i], y[i], z[i]}, g[3];
-    solid_at(ud, p, g);
+    solid_at(ud, p, g, from, &hint);
     gx[i] = g[0];
     gy[i] = g[1];
     gz[i] = g[2];
@@ -372,18 +386,16 @@ static gr_mesh *copy_mesh(const gr_mesh *m) {
 }
 
 gr_field *gr_solid_field(const gr_mesh *m, gr_err *e) {
-  if (!m || m->nf == 0) return gr_fail(e, GR_EARG, "solid: the mesh is empty"), NULL;
-  for (size_t i = 0; i < 3 * m->nv; i++)
-    if (!isfinite(m->v[i])) return gr_fail(e, GR_EGEOM, "solid: mesh vertex %zu is not finite", i / 3), NULL;
-  for (size_t i = 0; i < 3 * m->nf; i++)
-    if (m->f[i] >= m->nv) return gr_fail(e, GR_EGEOM, "solid: face %zu refers to missing vertex %u", i / 3, m->f[i]), NULL;
   solid *s = calloc(1, sizeof *s);
   if (!s) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
-  s->m = copy_mesh(m);
+  s->m = m ? copy_mesh(m) : NULL;
+  if (m && !s->m) return solid_free(s), gr_fail(e, GR_EMEM, "out of memory for a copy of the mesh"), NULL;
+  /* the BVH first: it refuses empty meshes, non-finite vertices and missing indices */
+  if (!(s->bvh = gr_bvh_new(s->m, e))) return solid_free(s), NULL;
   s->fn = calloc(3 * m->nf, sizeof *s->fn);
   s->en = calloc(9 * m->nf, sizeof *s->en);
   s->vn = calloc(3 * m->nv, sizeof *s->vn);
-  if (!s->m || !s->fn || !s->en || !s->vn) {
+  if (!s->fn || !s->en || !s->vn) {
     solid_free(s);
     return gr_fail(e, GR_EMEM, "out of memory for a solid of %zu faces", m->nf), NULL;
   }
@@ -391,7 +403,6 @@ gr_field *gr_solid_field(const gr_mesh *m, gr_err *e) {
   double vol = gr_mesh_volume(s->m);
   if (!(fabs(vol) > 0)) return solid_free(s), gr_fail(e, GR_EGEOM, "solid: the mesh encloses no volume"), NULL;
   s->sign = vol > 0 ? 1 : -1;
-  if (!(s->bvh = gr_bvh_new(s->m, e))) return solid_free(s), NULL;
   gr_field *f = gr_field_callback(solid_eval, solid_grad, s, solid_free, 1, "solid");
   if (!f) return solid_free(s), gr_fail(e, GR_EMEM, "out of memory"), NULL;
   gr_field_set_lipschitz(f, 1);

@@ -120,26 +120,36 @@ static double sphere_truth(const double *p, const void *ud) {
   return sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]) - *(const double *)ud;
 }
 
+/* The solid of m, checked exact (1e-12 mm, and every sign) against truth
+ * over random points of [lo, hi]^3; NULL (a failure) when it is refused. */
+static gr_field *exact_solid(const gr_mesh *m, double (*truth)(const double *, const void *), double lo,
+                             double hi, const char *label) {
+  gr_err e;
+  gr_field *f = gr_solid_field(m, &e);
+  CHECK(f != NULL, "%s: %s", label, e.msg);
+  if (!f) return NULL;
+  int wrong;
+  double w = worst_error(f, truth, NULL, lo, hi, 1e-9, &wrong);
+  CHECK(w <= 1e-12, "%s: largest error %.3g mm", label, w);
+  CHECK(wrong == 0, "%s: %d wrong signs", label, wrong);
+  return f;
+}
+
 TEST(box_exact) {
   for (int inv = 0; inv < 2; inv++) {
     gr_mesh *m = gr_mesh_new();
     add_box(m, LO, HI, inv);
     CHECK(inv ? gr_mesh_volume(m) < 0 : gr_mesh_volume(m) > 0, "orientation of the test box");
-    gr_err e;
-    gr_field *f = gr_solid_field(m, &e);
-    CHECK(f != NULL, "%s", e.msg);
+    gr_field *f = exact_solid(m, cube_truth, -2.5, 3, inv ? "inverted box" : "box");
     gr_mesh_free(m); /* the solid keeps its own copy */
     if (!f) continue;
-    int wrong;
-    double w = worst_error(f, cube_truth, NULL, -2.5, 3, 1e-9, &wrong);
-    CHECK(w <= 1e-12, "inverted=%d: largest error %.3g mm", inv, w);
-    CHECK(wrong == 0, "inverted=%d: %d wrong signs", inv, wrong);
     /* just outside a corner (vertex pseudo-normal) and an edge (edge pseudo-normal) */
     CHECK_NEAR(eval1(f, 1.1, 2.1, 0.6), sqrt(0.03), 1e-12);
     CHECK_NEAR(eval1(f, 1.1, 0, 0.6), sqrt(0.02), 1e-12);
     CHECK_NEAR(eval1(f, 0, 0, 0), -0.5, 1e-12);
     CHECK_NEAR(gr_field_lipschitz(f), 1, 0);
     double x = 0.3, y = 0.2, z = 0.9, gx, gy, gz;
+    gr_err e;
     CHECK(gr_field_grad(f, 1, &x, &y, &z, &gx, &gy, &gz, &e) == GR_OK, "%s", e.msg);
     CHECK(fabs(gx) < 1e-12 && fabs(gy) < 1e-12 && fabs(gz - 1) < 1e-12, "gradient above the top (%g, %g, %g)", gx, gy, gz);
     gr_field_free(f);
@@ -152,17 +162,9 @@ TEST(box_with_cavity) {
   gr_mesh *m = gr_mesh_new();
   add_box(m, LO, HI, 0);
   add_box(m, CLO, CHI, 1);
-  gr_err e;
-  gr_field *f = gr_solid_field(m, &e);
-  CHECK(f != NULL, "%s", e.msg);
-  if (f) {
-    int wrong;
-    double w = worst_error(f, cavity_truth, NULL, -1.5, 2.5, 1e-9, &wrong);
-    CHECK(w <= 1e-12, "largest error %.3g mm", w);
-    CHECK(wrong == 0, "%d wrong signs", wrong);
-    CHECK_NEAR(eval1(f, 0, 0, 0), 0.2, 1e-12); /* in the cavity: outside the part */
-    gr_field_free(f);
-  }
+  gr_field *f = exact_solid(m, cavity_truth, -1.5, 2.5, "cavity");
+  if (f) CHECK_NEAR(eval1(f, 0, 0, 0), 0.2, 1e-12); /* in the cavity: outside the part */
+  gr_field_free(f);
   gr_mesh_free(m);
 }
 
@@ -203,31 +205,15 @@ TEST(sharp_tetrahedron) {
   gr_mesh *m = gr_mesh_new();
   add_tet(m, 0);
   CHECK(gr_mesh_volume(m) > 0, "orientation of the test tetrahedron");
-  gr_err e;
-  gr_field *f = gr_solid_field(m, &e);
-  CHECK(f != NULL, "%s", e.msg);
-  if (f) {
-    int wrong;
-    double w = worst_error(f, tet_truth, NULL, -0.3, 1.8, 1e-9, &wrong);
-    CHECK(w <= 1e-12, "largest error %.3g mm", w);
-    CHECK(wrong == 0, "%d wrong signs", wrong);
-    CHECK_NEAR(eval1(f, 0.1, 0.08, 1.6), 0.1, 1e-12); /* above the spike's tip */
-    gr_field_free(f);
-  }
+  gr_field *f = exact_solid(m, tet_truth, -0.3, 1.8, "spike");
+  if (f) CHECK_NEAR(eval1(f, 0.1, 0.08, 1.6), 0.1, 1e-12); /* above the spike's tip */
+  gr_field_free(f);
   gr_mesh_free(m);
   /* the same spike as a cavity in a box: sharp concave edges of the solid */
   m = gr_mesh_new();
   add_box(m, TLO, THI, 0);
   add_tet(m, 1);
-  f = gr_solid_field(m, &e);
-  CHECK(f != NULL, "%s", e.msg);
-  if (f) {
-    int wrong;
-    double w = worst_error(f, tet_cavity_truth, NULL, -0.2, 1.7, 1e-9, &wrong);
-    CHECK(w <= 1e-12, "cavity: largest error %.3g mm", w);
-    CHECK(wrong == 0, "cavity: %d wrong signs", wrong);
-    gr_field_free(f);
-  }
+  gr_field_free(exact_solid(m, tet_cavity_truth, -0.2, 1.7, "spike cavity"));
   gr_mesh_free(m);
 }
 
@@ -256,6 +242,15 @@ TEST(sphere_within_chord_error) {
   }
 }
 
+/* The box LO..HI and the box lo..hi in one mesh (separate vertices). */
+static gr_mesh *two_boxes(double x0, double y0, double z0, double x1, double y1, double z1) {
+  gr_mesh *m = gr_mesh_new();
+  double lo[3] = {x0, y0, z0}, hi[3] = {x1, y1, z1};
+  add_box(m, LO, HI, 0);
+  add_box(m, lo, hi, 0);
+  return m;
+}
+
 static void expect_error(gr_mesh *m, const char *want1, const char *want2, const char *label) {
   gr_err e;
   gr_err_clear(&e);
@@ -282,37 +277,22 @@ TEST(invalid_meshes) {
   gr_mesh_free(m);
 
   /* two cubes sharing one edge (its vertices merged): four faces use it */
-  m = gr_mesh_new();
-  double lo1[3] = {1, 2, -1}, hi1[3] = {2, 3, 0.5};
-  add_box(m, LO, HI, 0);
-  add_box(m, lo1, hi1, 0);
+  m = two_boxes(1, 2, -1, 2, 3, 0.5);
   for (size_t i = 36; i < 72; i++)
     for (uint32_t v = 0; v < 8; v++)
       if (!memcmp(m->v + 3 * (size_t)m->f[i], m->v + 3 * (size_t)v, 3 * sizeof(double))) m->f[i] = v;
   expect_error(m, "not manifold", "1 edge, e.g. (1, 2, -1)-(1, 2, 0.5)", "non-manifold");
   gr_mesh_free(m);
-
   /* two overlapping cubes merged into one mesh */
-  m = gr_mesh_new();
-  double lo2[3] = {0.5, 0.5, 0}, hi2[3] = {2, 3, 1};
-  add_box(m, LO, HI, 0);
-  add_box(m, lo2, hi2, 0);
+  m = two_boxes(0.5, 0.5, 0, 2, 3, 1);
   expect_error(m, "intersects itself", "faces ", "overlapping cubes");
   gr_mesh_free(m);
-
   /* a cube touching another along a whole face (coplanar overlap) */
-  m = gr_mesh_new();
-  double lo3[3] = {1, -1, -1}, hi3[3] = {2, 2, 0.5};
-  add_box(m, LO, HI, 0);
-  add_box(m, lo3, hi3, 0);
+  m = two_boxes(1, -1, -1, 2, 2, 0.5);
   expect_error(m, "intersects itself", "", "touching cubes");
   gr_mesh_free(m);
-
   /* disjoint cubes are fine */
-  m = gr_mesh_new();
-  double lo4[3] = {1.5, -1, -1}, hi4[3] = {2, 2, 0.5};
-  add_box(m, LO, HI, 0);
-  add_box(m, lo4, hi4, 0);
+  m = two_boxes(1.5, -1, -1, 2, 2, 0.5);
   gr_err e;
   gr_field *f = gr_solid_field(m, &e);
   CHECK(f != NULL, "disjoint cubes: %s", e.msg);
