@@ -1,8 +1,9 @@
 /* bind_mesh.c: Lua binding of meshes and marching cubes: gradus.mc,
- * gradus.mesh.read/new and the mesh methods. */
+ * gradus.mesh.read/new/solid and the mesh methods. */
 #include <math.h>
 #include "bind.h"
 #include "mc.h"
+#include "solid.h"
 
 /* gradus.mc(field, {lo=, hi=, res=N | n={nx,ny,nz}, refine=false}) */
 static int l_mc(lua_State *L) {
@@ -55,6 +56,16 @@ static int l_new(lua_State *L) {
   gr_mesh *m = gr_mesh_new();
   if (!m) return luaL_error(L, "out of memory");
   gr_push_mesh(L, m);
+  return 1;
+}
+
+/* gradus.mesh.solid(mesh) or mesh:solid() -> the part's signed distance field */
+static int l_solid(lua_State *L) {
+  gr_mesh *m = gr_check_mesh(L, 1);
+  gr_err e;
+  gr_field *f = gr_solid_field(m, &e);
+  if (!f) return gr_lua_error(L, &e);
+  gr_push_field(L, f);
   return 1;
 }
 
@@ -134,7 +145,7 @@ int gr_open_mesh(lua_State *L) {
   static const luaL_Reg methods[] = {
       {"write", m_write}, {"counts", m_counts}, {"area", m_area},
       {"volume", m_volume}, {"bounds", m_bounds}, {"topology", m_topology},
-      {"vertex", m_vertex}, {"face", m_face}, {"__tostring", m_tostring},
+      {"vertex", m_vertex}, {"face", m_face}, {"solid", l_solid}, {"__tostring", m_tostring},
       {NULL, NULL}};
   gr_add_methods(L, GR_MT_MESH, methods);
   lua_pushcfunction(L, l_mc);
@@ -144,6 +155,8 @@ int gr_open_mesh(lua_State *L) {
   lua_setfield(L, -2, "read");
   lua_pushcfunction(L, l_new);
   lua_setfield(L, -2, "new");
+  lua_pushcfunction(L, l_solid);
+  lua_setfield(L, -2, "solid");
   lua_setfield(L, -2, "mesh");
   return 0;
 }

@@ -351,6 +351,7 @@ void *gr_field_callback_data(const gr_field *f, gr_field_fn fn) {
   return (f && f->kind == K_CALLBACK && f->fn == fn) ? f->ud : NULL;
 }
 double gr_field_lipschitz(const gr_field *f) { return f ? f->lip : INFINITY; }
+void gr_field_set_lipschitz(gr_field *f, double k) { if (f && k > 0) f->lip = k; }
 const char *gr_field_describe(const gr_field *f) { return f ? f->desc : "(null)"; }
 
 /* ---- evaluation ---- */

@@ -69,6 +69,9 @@ int gr_field_threadsafe(const gr_field *f);
 void *gr_field_callback_data(const gr_field *f, gr_field_fn fn);
 /* Upper bound on |grad phi| (INFINITY if unknown): d(p) >= |phi(p)|/K. */
 double gr_field_lipschitz(const gr_field *f);
+/* Set that bound (a callback field's maker, right after gr_field_callback,
+ * before the field is shared; e.g. 1 for a signed distance). */
+void gr_field_set_lipschitz(gr_field *f, double k);
 /* Short text such as "primitive(L=2, level=0)". */
 const char *gr_field_describe(const gr_field *f);
 

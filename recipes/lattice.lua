@@ -3,7 +3,8 @@
 -- Parameters (SPEC.md section 7): surface, cell, cells, origin, level, kind,
 -- thickness, layer, hatch, beam_offset, angle, rotation, pattern, contours,
 -- lasers, kb, format; and machine, assign, sequence, mode, res, layers,
--- pictures (comma-separated layer numbers to draw), split, threads.
+-- pictures (comma-separated layer numbers to draw), split, threads; domain
+-- (an STL file of the part, or an expression) and skin (mm).
 local lattice = require "gradus.lattice"
 local p = lattice.params()
 local out = gradus.output("out/lattice.cli")

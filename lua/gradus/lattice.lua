@@ -68,6 +68,8 @@ function M.params()
     split = P("split", false),
     verify = P("verify", ""),
     min_length = P("min_length", 0.0),
+    domain = P("domain", ""),
+    skin = P("skin", 0.0),
   }
   return p
 end
@@ -83,9 +85,33 @@ local function parse_range(s, n)
   return tonumber(a), tonumber(b)
 end
 
+-- The design domain p.domain: a field, an expression, or the path of a
+-- closed STL mesh (the part: its signed distance, gradus.mesh.solid), which
+-- must overlap the box of cells; nil or "": none.
+local function domain_of(d, origin, cells, L)
+  if d == nil or d == "" then return nil end
+  if type(d) == "string" and d:lower():match("%.stl$") then
+    local ok, m = pcall(gradus.mesh.read, d)
+    local mesh = m
+    if ok then ok, m = pcall(gradus.mesh.solid, m) end
+    if not ok then error(("bad domain '%s': %s"):format(d, tostring(m)), 3) end
+    local lo, hi = mesh:bounds()
+    for a = 1, 3 do
+      if hi[a] <= origin[a] or lo[a] >= origin[a] + cells[a] * L then
+        error(("bad domain '%s': the part (%g, %g, %g)-(%g, %g, %g) mm lies outside the box of cells (%g, %g, %g)-(%g, %g, %g); set origin and cells")
+          :format(d, lo[1], lo[2], lo[3], hi[1], hi[2], hi[3], origin[1], origin[2], origin[3],
+            origin[1] + cells[1] * L, origin[2] + cells[2] * L, origin[3] + cells[3] * L), 3)
+      end
+    end
+    return m
+  end
+  return d
+end
+
 --- M.run(p, out): run the pipeline. p: params (see M.params) and optional
 -- rules: p.rule(i, j, k, x, y, z) -> table {surface=, thickness=, laser=,
--- seq=, skip=} per voxel; p.domain (a field, negative inside); p.skin (mm).
+-- seq=, skip=} per voxel; p.domain (a field, negative inside, an expression
+-- or an STL file); p.skin (mm).
 -- Writes the CLI to `out`, the manifest beside it, stats to --stats, and SVG
 -- pictures of p.pictures layers. Returns the stats table.
 function M.run(p, out)
@@ -96,6 +122,7 @@ function M.run(p, out)
     end
   end
   local origin = vec("origin", p.origin, 3)
+  local domain = domain_of(p.domain, origin, cells, p.cell)
   if p.kind ~= "sheet" and p.kind ~= "network" then
     error(("bad kind '%s' (sheet or network)"):format(tostring(p.kind)), 2)
   end
@@ -152,7 +179,7 @@ function M.run(p, out)
       end
     end
   end
-  if p.domain then job:domain(p.domain, { skin = p.skin or 0 }) end
+  if domain then job:domain(domain, { skin = p.skin or 0 }) end
   local first, last = parse_range(p.layers, job:layers())
   local keep = {}
   for item in tostring(p.pictures):gmatch("[^,]+") do keep[#keep + 1] = tonumber(item) end
