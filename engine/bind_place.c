@@ -76,6 +76,7 @@ static int l_job(lua_State *L) {
   o.threads = gr_opt_integer(L, 1, "threads", o.threads);
   o.nlasers = gr_opt_integer(L, 1, "lasers", 1);
   o.share = gr_opt_boolean(L, 1, "share", o.share);
+  o.faces = gr_opt_boolean(L, 1, "faces", o.faces);
   gr_err e;
   gr_err_clear(&e);
   b->j = gr_job_new(&o, &e);

@@ -89,7 +89,16 @@ gr_cli_writer *gr_cli_open(const char *path, const gr_cli_header *h, gr_err *e) 
 
 static void put_u16(unsigned char *p, unsigned v) { p[0] = v & 255; p[1] = (v >> 8) & 255; }
 static void put_i32(unsigned char *p, int32_t v) { uint32_t u = (uint32_t)v; for (int i = 0; i < 4; i++) p[i] = (u >> (8 * i)) & 255; }
-static void put_f32(unsigned char *p, double v) { float f = (float)v; uint32_t u; memcpy(&u, &f, 4); for (int i = 0; i < 4; i++) p[i] = (u >> (8 * i)) & 255; }
+static void put_f32(unsigned char *p, double v) {
+  float f = (float)v;
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+  memcpy(p, &f, 4); /* the file is little-endian */
+#else
+  uint32_t u;
+  memcpy(&u, &f, 4);
+  for (int i = 0; i < 4; i++) p[i] = (u >> (8 * i)) & 255;
+#endif
+}
 
 int gr_cli_write_layer(gr_cli_writer *w, const gr_layer *l, gr_err *e) {
   double u = w->h.units;

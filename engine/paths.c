@@ -180,6 +180,71 @@ int gr_rings_copy(gr_rings *dst, const gr_rings *src) {
   return rc;
 }
 
+/* Distance from p to segment ab. */
+static double seg_dist(const double *p, const double *a, const double *b) {
+  double ex = b[0] - a[0], ey = b[1] - a[1], L2 = ex * ex + ey * ey;
+  double t = L2 > 0 ? ((p[0] - a[0]) * ex + (p[1] - a[1]) * ey) / L2 : 0;
+  t = t < 0 ? 0 : t > 1 ? 1 : t;
+  return gr_len2d(a[0] + t * ex - p[0], a[1] + t * ey - p[1]);
+}
+
+int gr_rings_simplify(gr_rings *r, double tol) {
+  size_t cap = 0, *stack = NULL;
+  unsigned char *keep = malloc(r->npts + 1);
+  if (!keep) return GR_EMEM;
+  size_t out = 0;
+  for (size_t i = 0; i < r->nrings; i++) {
+    size_t n = gr_ring_len(r, i), st = r->start[i];
+    const double *p = r->xy + 2 * st;
+    memset(keep, n < 4, n);
+    if (n >= 4) {
+      /* anchors: point 0 and the point farthest from it; chains between */
+      size_t far = 0;
+      double best = -1;
+      for (size_t k = 1; k < n; k++) {
+        double d = gr_len2d(p[2 * k] - p[0], p[2 * k + 1] - p[1]);
+        if (d > best) { best = d; far = k; }
+      }
+      keep[0] = keep[far] = 1;
+      size_t ns = 0;
+      if (gr_grow(&stack, &cap, 4, sizeof *stack)) { free(keep); free(stack); return GR_EMEM; }
+      stack[ns++] = 0; stack[ns++] = far;
+      stack[ns++] = far; stack[ns++] = n;
+      while (ns) {
+        size_t b = stack[--ns], a = stack[--ns];
+        const double *pa = p + 2 * a, *pb = p + 2 * (b % n);
+        size_t worst = 0;
+        double dw = tol;
+        for (size_t k = a + 1; k < b; k++) {
+          double d = seg_dist(p + 2 * k, pa, pb);
+          if (d > dw) { dw = d; worst = k; }
+        }
+        if (!worst) continue;
+        keep[worst] = 1;
+        if (gr_grow(&stack, &cap, ns + 4, sizeof *stack)) { free(keep); free(stack); return GR_EMEM; }
+        stack[ns++] = a; stack[ns++] = worst;
+        stack[ns++] = worst; stack[ns++] = b;
+      }
+      size_t m = 0;
+      for (size_t k = 0; k < n; k++) m += keep[k];
+      if (m < 3) memset(keep, 1, n);
+    }
+    size_t o0 = out;
+    for (size_t k = 0; k < n; k++)
+      if (keep[k]) {
+        r->xy[2 * out] = r->xy[2 * (st + k)];
+        r->xy[2 * out + 1] = r->xy[2 * (st + k) + 1];
+        out++;
+      }
+    r->start[i] = o0;
+  }
+  r->start[r->nrings] = out;
+  r->npts = out;
+  free(keep);
+  free(stack);
+  return GR_OK;
+}
+
 /* ---- layers ---- */
 gr_layer *gr_layer_new(double z) {
   gr_layer *l = calloc(1, sizeof *l);

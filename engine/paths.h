@@ -40,6 +40,10 @@ int gr_rings_nest(gr_rings *r, gr_err *e);
 void gr_rings_translate(gr_rings *r, double dx, double dy);
 int gr_rings_copy(gr_rings *dst, const gr_rings *src); /* dst is cleared first */
 int gr_rings_append(gr_rings *dst, const gr_rings *src, double dx, double dy);
+/* Drop points whose removal moves no ring by more than tol (mm): Douglas-
+ * Peucker on each ring, in place; every ring keeps at least 3 points and its
+ * place (nesting stays valid). */
+int gr_rings_simplify(gr_rings *r, double tol);
 
 /* ---- scan vectors ---- */
 enum gr_kind { GR_CONTOUR = 0, GR_HATCH = 1, GR_EDGE = 2, GR_NKINDS = 3 };

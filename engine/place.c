@@ -56,6 +56,7 @@ gr_job_opts gr_job_defaults(void) {
   o.verify = 0;
   o.nlasers = 1;
   o.share = 1;
+  o.faces = 1;
   return o;
 }
 
@@ -65,6 +66,9 @@ typedef struct tlayer {
   gr_rings *section;  /* window, voxel-local */
   gr_rings *region;   /* hatch region, voxel-local */
   gr_layer *paths;    /* contours (+ thin-wall scans) clipped to [0,L]^2 */
+  gr_layer *faces;    /* contour segments along the voxel's sides at the contour
+                         offsets, for voxels on the part's boundary (block.laser
+                         = side: 0 x=0, 1 x=L, 2 y=0, 3 y=L) */
 } tlayer;
 
 typedef struct tmpl {
@@ -120,6 +124,7 @@ static void tmpl_free(tmpl *t) {
     gr_rings_free(t->l[i].section);
     gr_rings_free(t->l[i].region);
     gr_layer_free(t->l[i].paths);
+    gr_layer_free(t->l[i].faces);
   }
   free(t->l);
   free(t);
@@ -671,6 +676,8 @@ static double area_in_box(const gr_rings *r, const double lo[2], const double hi
 /* Chords of sections and contours deviate from the true curve by at most
  * this (mm): refined midpoints are inserted where they would not. */
 #define CHORD_TOL 2e-4
+/* Hatch regions are simplified to this (mm): hatch ends move by at most this. */
+#define REGION_TOL 1e-4
 
 static int offset_fine(const gr_rings *in, double b, double cell, gr_rings *out, gr_err *e) {
   return gr_offset_rings_opt(in, b, cell, 1e-6, 0, out, e);
@@ -687,6 +694,114 @@ static int template_alloc(gr_job *j, int c, int ja, int jb, gr_err *e) {
   tmpl_free(j->cls[c].t);
   j->cls[c].t = t;
   return GR_OK;
+}
+
+/* ---- voxels on the part's boundary ----
+ * The part's section in a boundary voxel is the lattice section A cut by the
+ * voxel's outer sides. Eroding an intersection erodes each part, so its
+ * contour at offset c is (the contour of A at c, cut by the sides moved in by
+ * c) plus (the sides moved in by c, where they lie inside A's offset by c):
+ * the first from the template's contours, the second computed here once per
+ * template layer for the four sides, c = b, b + d, ... */
+
+/* Signed in-plane distance to the section boundary at t along the line
+ * (x0 + t ux, y0 + t uy), negative inside, clamped to +-R. Only edges near the
+ * line can be nearer than R; inside/outside from the crossings cr (sorted). */
+typedef struct fline {
+  double x0, y0, ux, uy, R;
+  const double *ed;  /* candidate edges (4 per edge) */
+  size_t ne;
+  const double *cr;  /* crossing parameters, sorted */
+  size_t nc;
+} fline;
+
+static double fline_value(const fline *f, double t) {
+  double px = f->x0 + t * f->ux, py = f->y0 + t * f->uy, best = f->R * f->R;
+  for (size_t k = 0; k < f->ne; k++) {
+    const double *a = f->ed + 4 * k;
+    double ex = a[2] - a[0], ey = a[3] - a[1], L2 = ex * ex + ey * ey;
+    double s = L2 > 0 ? ((px - a[0]) * ex + (py - a[1]) * ey) / L2 : 0;
+    s = s < 0 ? 0 : s > 1 ? 1 : s;
+    double dx = a[0] + s * ex - px, dy = a[1] + s * ey - py, d2 = dx * dx + dy * dy;
+    if (d2 < best) best = d2;
+  }
+  size_t below = 0;
+  while (below < f->nc && f->cr[below] < t) below++;
+  return (below & 1) ? -sqrt(best) : sqrt(best);
+}
+
+static int dbl_cmp(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+/* The side segment [ta, tb] of the line, oriented like the contours (the
+ * part on the left): down along x = c, up along x = L - c, and so on. */
+static int face_seg(gr_layer *l, const fline *f, int side, double ta, double tb) {
+  int rev = side == 0 || side == 3;
+  double a = rev ? tb : ta, b = rev ? ta : tb;
+  double seg[4] = {f->x0 + a * f->ux, f->y0 + a * f->uy, f->x0 + b * f->ux, f->y0 + b * f->uy};
+  return gr_layer_add(l, GR_OPEN, GR_CONTOUR, side, 2, seg, 2);
+}
+
+static int face_lines(const gr_job *j, tlayer *tl) {
+  if (!tl->faces && !(tl->faces = gr_layer_new(0))) return GR_EMEM;
+  gr_layer_clear(tl->faces, 0);
+  const gr_rings *r = tl->section;
+  double L = j->o.cell, b = j->o.beam_offset, d = j->o.hatch, step = j->o.slice_cell / 4;
+  int nc = j->o.contours;
+  if (nc <= 0 || r->npts == 0) return GR_OK;
+  double R = b + (nc - 1) * d + 2 * step;
+  double *ed = malloc(4 * r->npts * sizeof *ed), *cr = malloc((r->npts + 1) * sizeof *cr);
+  if (!ed || !cr) { free(ed); free(cr); return GR_EMEM; }
+  int rc = GR_OK;
+  for (int side = 0; side < 4 && rc == GR_OK; side++) {
+    int vert = side < 2; /* x = const */
+    for (int k = 0; k < nc && rc == GR_OK; k++) {
+      double c = b + k * d, pos = (side & 1) ? L - c : c;
+      fline f = {vert ? pos : 0, vert ? 0 : pos, vert ? 0 : 1, vert ? 1 : 0, R, ed, 0, cr, 0};
+      for (size_t i = 0; i < r->nrings; i++) {
+        const double *p = gr_ring_xy(r, i);
+        size_t n = gr_ring_len(r, i);
+        for (size_t a = 0; a < n; a++) {
+          const double *P = p + 2 * a, *Q = p + 2 * ((a + 1) % n);
+          double pa = vert ? P[0] : P[1], qa = vert ? Q[0] : Q[1];   /* across the line */
+          double pl = vert ? P[1] : P[0], ql = vert ? Q[1] : Q[0];   /* along it */
+          if ((pa > pos) != (qa > pos)) cr[f.nc++] = pl + (pos - pa) * (ql - pl) / (qa - pa);
+          if (fmin(pa, qa) <= pos + R && fmax(pa, qa) >= pos - R) {
+            double *e4 = ed + 4 * f.ne++;
+            e4[0] = P[0]; e4[1] = P[1]; e4[2] = Q[0]; e4[3] = Q[1];
+          }
+        }
+      }
+      qsort(cr, f.nc, sizeof *cr, dbl_cmp);
+      /* intervals of [0, L] where the value is <= -c: sample, then bisect the ends */
+      int ns = (int)ceil(L / step);
+      double t0 = 0, v0 = fline_value(&f, 0) + c, start = v0 <= 0 ? 0 : NAN;
+      for (int q = 1; q <= ns && rc == GR_OK; q++) {
+        double t1 = q == ns ? L : q * step, v1 = fline_value(&f, t1) + c;
+        if ((v0 <= 0) != (v1 <= 0)) {
+          double lo = t0, hi = t1, vlo = v0;
+          for (int it = 0; it < 40 && hi - lo > 1e-7; it++) {
+            double m = 0.5 * (lo + hi), vm = fline_value(&f, m) + c;
+            if ((vm <= 0) == (vlo <= 0)) { lo = m; vlo = vm; } else hi = m;
+          }
+          double tc = 0.5 * (lo + hi);
+          if (v1 <= 0) start = tc;
+          else {
+            if (tc > start && face_seg(tl->faces, &f, side, start, tc)) rc = GR_EMEM;
+            start = NAN;
+          }
+        }
+        t0 = t1;
+        v0 = v1;
+      }
+      if (rc == GR_OK && !isnan(start) && L > start && face_seg(tl->faces, &f, side, start, L)) rc = GR_EMEM;
+    }
+  }
+  free(ed);
+  free(cr);
+  return rc;
 }
 
 /* Margin of a template's slice window around the voxel: whole grid cells,
@@ -885,6 +1000,9 @@ static int build_layers(gr_job *j, int c, const gr_field *f, const cptab *tab, i
     }
     tl->paths->thin_walls = rep.thin_walls;
     if (rc == GR_OK) rc = offset_fine(tl->section, rep.hatch_offset, h, tl->region, e);
+    /* hatch ends need no sub-micrometre region: fewer edges to scan per instance */
+    if (rc == GR_OK && gr_rings_simplify(tl->region, REGION_TOL)) rc = gr_fail(e, GR_EMEM, "out of memory");
+    if (rc == GR_OK && face_lines(j, tl)) rc = gr_fail(e, GR_EMEM, "out of memory");
   }
   free(buf);
   gr_layer_free(tmp);
@@ -914,10 +1032,15 @@ typedef struct scratch {
   size_t cappts;
   long *link;
   size_t caplink;
+  gr_layer *fl;          /* contours of a boundary voxel, voxel-local */
+  double *cbuf;
+  size_t capcbuf;
 } scratch;
 
 static void scratch_free(scratch *s) {
   gr_rings_free(s->rg);
+  gr_layer_free(s->fl);
+  free(s->cbuf);
   gr_layer_free(s->hl);
   gr_layer_free(s->cont);
   free(s->segs);
@@ -936,13 +1059,14 @@ static int scratch_init(scratch *s, int nrow) {
   s->rg = gr_rings_new();
   s->hl = gr_layer_new(0);
   s->cont = gr_layer_new(0);
+  s->fl = gr_layer_new(0);
   s->vtime = calloc(nrow, sizeof *s->vtime);
   s->vlas = calloc(nrow, sizeof *s->vlas);
   s->vseg0 = calloc(nrow, sizeof(size_t));
   s->vseg1 = calloc(nrow, sizeof(size_t));
   s->vcont0 = calloc(nrow, sizeof(size_t));
   s->vcont1 = calloc(nrow, sizeof(size_t));
-  if (!s->rg || !s->hl || !s->cont || !s->vtime || !s->vlas || !s->vseg0 || !s->vseg1 ||
+  if (!s->rg || !s->hl || !s->cont || !s->fl || !s->vtime || !s->vlas || !s->vseg0 || !s->vseg1 ||
       !s->vcont0 || !s->vcont1)
     return GR_EMEM;
   return GR_OK;
@@ -963,8 +1087,60 @@ double gr_job_angle(const gr_job *j, int g) {
 
 /* Hatch one voxel: its template region translated to global coordinates,
  * lines of the global family at angle a, clipped to the voxel square. */
+/* Sides of voxel v on the part's boundary (no lattice beyond): bits 1 x=0,
+ * 2 x=L, 4 y=0, 8 y=L; 0 when the job leaves cut sides open. */
+static int voxel_sides(const gr_job *j, int v) {
+  if (!j->o.faces) return 0;
+  int i, jj, k, nx = j->o.n[0], ny = j->o.n[1], m = 0;
+  voxel_ijk(j, v, &i, &jj, &k);
+  if (i == 0 || j->vcls[v - 1] < 0) m |= 1;
+  if (i == nx - 1 || j->vcls[v + 1] < 0) m |= 2;
+  if (jj == 0 || j->vcls[v - nx] < 0) m |= 4;
+  if (jj == ny - 1 || j->vcls[v + nx] < 0) m |= 8;
+  (void)ny;
+  return m;
+}
+
+/* The voxel square [0, L]^2 with the sides in mask moved in by c (mm). */
+static void side_box(const gr_job *j, int mask, double c, double lo[2], double hi[2]) {
+  double L = j->o.cell;
+  lo[0] = (mask & 1) ? c : 0;
+  hi[0] = (mask & 2) ? L - c : L;
+  lo[1] = (mask & 4) ? c : 0;
+  hi[1] = (mask & 8) ? L - c : L;
+}
+
+/* Offset of the hatch region from the section boundary (hatch.h), mm. */
+static double hatch_offset(const gr_job *j) {
+  double gap = gr_hatch_defaults().gap;
+  int n = j->o.contours;
+  return n == 0 ? j->o.beam_offset + gap : j->o.beam_offset + (n - 1) * j->o.hatch + gap;
+}
+
+/* Contours of boundary voxel tl (sides in mask): the template's cut by the
+ * sides moved in by b, plus the side segments; voxel-local, into s->fl. */
+static int boundary_contours(const gr_job *j, scratch *s, const tlayer *tl, int mask) {
+  double lo[2], hi[2];
+  side_box(j, mask, j->o.beam_offset, lo, hi);
+  gr_layer_clear(s->fl, 0);
+  for (size_t b = 0; b < tl->paths->nb; b++) {
+    const gr_block *bk = &tl->paths->b[b];
+    if (clip_poly(tl->paths->xy + 2 * bk->start, bk->n, bk->shape == GR_CLOSED, bk->kind, bk->dir, lo, hi, s->fl,
+                  &s->cbuf, &s->capcbuf))
+      return GR_EMEM;
+  }
+  for (size_t b = 0; tl->faces && b < tl->faces->nb; b++) {
+    const gr_block *bk = &tl->faces->b[b];
+    if (!((mask >> bk->laser) & 1)) continue;
+    if (clip_poly(tl->faces->xy + 2 * bk->start, bk->n, 0, bk->kind, 2, lo, hi, s->fl, &s->cbuf, &s->capcbuf))
+      return GR_EMEM;
+  }
+  s->fl->thin_walls = tl->paths->thin_walls;
+  return GR_OK;
+}
+
 static int hatch_voxel(gr_job *j, scratch *s, const tlayer *tl, const double o[3],
-                       double a, int slot, gr_err *e) {
+                       double a, int slot, int mask, gr_err *e) {
   if (tl->region->nrings == 0) return GR_OK;
   if (gr_rings_copy(s->rg, tl->region)) return gr_fail(e, GR_EMEM, "out of memory");
   gr_rings_translate(s->rg, o[0], o[1]);
@@ -977,7 +1153,9 @@ static int hatch_voxel(gr_job *j, scratch *s, const tlayer *tl, const double o[3
   ho.contours = 0;
   if (gr_hatch_region(s->rg, &ho, s->hl, NULL, e)) return e->code;
   double ca = cos(a * M_PI / 180), sa = sin(a * M_PI / 180);
-  double lo[2] = {o[0], o[1]}, hi[2] = {o[0] + j->o.cell, o[1] + j->o.cell};
+  double lo[2], hi[2];
+  side_box(j, mask, hatch_offset(j), lo, hi);
+  for (int k = 0; k < 2; k++) { lo[k] += o[k]; hi[k] += o[k]; }
   for (size_t b = 0; b < s->hl->nb; b++) {
     const gr_block *bk = &s->hl->b[b];
     const double *p = s->hl->xy + 2 * bk->start;
@@ -1251,7 +1429,9 @@ static int place_layer(gr_job *j, int g, scratch *s, gr_layer *out, gr_err *e) {
     voxel_origin(j, v, o);
     out->area += tl->area;
     size_t nb0 = s->cont->nb;
-    if (gr_layer_append(s->cont, tl->paths, o[0], o[1])) { rc = gr_fail(e, GR_EMEM, "out of memory"); break; }
+    int mask = voxel_sides(j, v);
+    if (mask && boundary_contours(j, s, tl, mask)) { rc = gr_fail(e, GR_EMEM, "out of memory"); break; }
+    if (gr_layer_append(s->cont, mask ? s->fl : tl->paths, o[0], o[1])) { rc = gr_fail(e, GR_EMEM, "out of memory"); break; }
     for (size_t b = nb0; b < s->cont->nb; b++) {
       s->cont->b[b].laser = q; /* slot, mapped to the laser later */
       lc[q] += gr_block_length(s->cont, &s->cont->b[b]);
@@ -1260,7 +1440,7 @@ static int place_layer(gr_job *j, int g, scratch *s, gr_layer *out, gr_err *e) {
     voxel_ijk(j, v, &i, &jj, &kk);
     double av = a;
     if (j->o.pattern == GR_PATTERN_ISLAND && ((i + jj) & 1)) av = fmod(a + 90, 360);
-    rc = hatch_voxel(j, s, tl, o, av, q, e);
+    rc = hatch_voxel(j, s, tl, o, av, q, mask, e);
     s->vcont1[q] = s->cont->nb;
     s->vseg1[q] = s->nseg;
     for (size_t r = s->vseg0[q]; r < s->nseg; r++) lh[q] += s->segs[r].s1 - s->segs[r].s0;
@@ -1486,7 +1666,7 @@ static gr_template *tmpl_to_record(const gr_job *j, const vclass *cl, gr_err *e)
   return r;
 }
 
-static tmpl *tmpl_from_record(const gr_template *r, int nl, double L) {
+static tmpl *tmpl_from_record(const gr_job *j, const gr_template *r, int nl, double L) {
   if (r->nlayers != nl || r->nslots != 2 || !r->extra) return NULL;
   for (int q = 0; q < nl; q++)
     if (!r->rings[q * 2] || !r->rings[q * 2 + 1] || !r->extra[q]) return NULL;
@@ -1510,6 +1690,7 @@ static tmpl *tmpl_from_record(const gr_template *r, int nl, double L) {
   for (int q = 0; q < nl; q++) {
     double lo[2] = {0, 0}, hi[2] = {L, L};
     t->l[q].area = area_in_box(t->l[q].section, lo, hi);
+    if (face_lines(j, &t->l[q])) { tmpl_free(t); return NULL; }
   }
   for (int i = 0; i < 4; i++) t->quality[i] = r->quality[i];
   t->from_kb = 1;
@@ -1552,7 +1733,7 @@ static int prepare_item(gr_job *j, int item, void *arg_, gr_err *e) {
     pthread_mutex_unlock(a->kbmu);
     if (rc) return rc;
     if (r) {
-      tmpl *t = tmpl_from_record(r, nl, j->o.cell);
+      tmpl *t = tmpl_from_record(j, r, nl, j->o.cell);
       gr_template_free(r);
       if (t) {
         tmpl_free(cl->t);

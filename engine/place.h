@@ -86,6 +86,10 @@ typedef struct gr_job_opts {
   int nlasers;          /* lasers (the machine may replace it) */
   int share;            /* 1: classes differing only in T share closest points
                            (same result, much faster); 0: each class alone */
+  int faces;            /* 1: where the lattice is cut by the part's box (a voxel
+                           side with no lattice beyond), contours run along the
+                           cut and hatches stop at the hatch offset from it;
+                           0: the cut is left open (hatched up to the side) */
 } gr_job_opts;
 gr_job_opts gr_job_defaults(void);
 

@@ -70,6 +70,7 @@ function M.params()
     min_length = P("min_length", 0.0),
     domain = P("domain", ""),
     skin = P("skin", 0.0),
+    faces = P("faces", true),
   }
   return p
 end
@@ -138,6 +139,7 @@ function M.run(p, out)
     contour_first = p.contour_first, angle = p.angle, rotation = p.rotation, pattern = p.pattern,
     alternate = p.alternate, res = p.res, mode = p.mode, quant = p.quant, threads = p.threads,
     slice_cell = p.slice_cell > 0 and p.slice_cell or nil, min_length = p.min_length,
+    faces = p.faces,
   }
   job:machine(machine)
   local specs = {}
