@@ -274,9 +274,7 @@ static int exact_refine(const offset *f, const double p[3], double q[3]) {
     double v, gx, gy, gz;
     gr_err e;
     for (int k = 0; k < 3; k++) {
-      if (gr_field_eval(f->phi, 1, &x[0], &x[1], &x[2], &v, &e) ||
-          gr_field_grad(f->phi, 1, &x[0], &x[1], &x[2], &gx, &gy, &gz, &e))
-        return 0;
+      if (gr_field_eval_grad(f->phi, 1, &x[0], &x[1], &x[2], &v, &gx, &gy, &gz, &e)) return 0;
       double g2 = gx * gx + gy * gy + gz * gz;
       if (!(g2 > 1e-300)) return 0;
       x[0] -= v * gx / g2;
@@ -336,9 +334,7 @@ static int exact_newton(const offset *f, const double p[3], double q[3]) {
   double gs[3][3];
   for (int it = 0; it < 20; it++) {
     double v, g[3];
-    if (gr_field_eval(f->phi, 1, &x[0], &x[1], &x[2], &v, &e) ||
-        gr_field_grad(f->phi, 1, &x[0], &x[1], &x[2], &g[0], &g[1], &g[2], &e))
-      return 0;
+    if (gr_field_eval_grad(f->phi, 1, &x[0], &x[1], &x[2], &v, &g[0], &g[1], &g[2], &e)) return 0;
     double g2 = dot3(g, g);
     if (!(g2 > 1e-300)) return 0;
     if (it == 0) lam = ((p[0] - x[0]) * g[0] + (p[1] - x[1]) * g[1] + (p[2] - x[2]) * g[2]) / g2;
@@ -764,6 +760,9 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
     for (size_t i = 0; i < nv && !f->warning[0]; i += 7) {
       double tv = (f->t || f->tin || f->tfield) ? t[i] : f->tconst;
       double v[3] = {vx[i], vy[i], vz[i]}, g[3];
+      int in = 1; /* a shared H: only this field's box */
+      for (int a = 0; a < 3 && lk; a++) in &= v[a] >= o->box_lo[a] && v[a] <= o->box_hi[a];
+      if (!in) continue;
       gr_err e2;
       if (gr_field_grad(f->phi, 1, &v[0], &v[1], &v[2], &g[0], &g[1], &g[2], &e2)) continue;
       double gn = sqrt(dot3(g, g));

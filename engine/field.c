@@ -589,6 +589,28 @@ int gr_field_grad(const gr_field *f, size_t n, const double *x,
   return GR_OK;
 }
 
+int gr_field_eval_grad(const gr_field *f, size_t n, const double *x, const double *y,
+                       const double *z, double *out, double *gx, double *gy, double *gz, gr_err *e) {
+  if (!f) return gr_fail(e, GR_EARG, "field is missing (NULL)");
+  if (f->kind != K_TPMS) {
+    int rc = gr_field_eval(f, n, x, y, z, out, e);
+    return rc ? rc : gr_field_grad(f, n, x, y, z, gx, gy, gz, e);
+  }
+  /* one set of sines and cosines for both */
+  double w = f->w, h = f->cell / 2, g[3];
+  double ox = f->origin[0] + h, oy = f->origin[1] + h, oz = f->origin[2] + h;
+  for (size_t i = 0; i < n; i++) {
+    out[i] = tpms_point(f->surface, w * (x[i] - ox), w * (y[i] - oy), w * (z[i] - oz), g) - f->level;
+    gx[i] = w * g[0]; gy[i] = w * g[1]; gz[i] = w * g[2];
+  }
+  long i = first_bad(n, out, gx, gy);
+  if (i < 0) i = first_bad(n, gz, NULL, NULL);
+  if (i >= 0)
+    return gr_fail(e, GR_ENUM, "field %s or its gradient is not finite at x=%.6g, y=%.6g, z=%.6g", f->desc,
+                   x[i], y[i], z[i]);
+  return GR_OK;
+}
+
 /* ---- sampling ---- */
 #define GRID_LIMIT_BYTES 4294967296.0 /* 4 GiB */
 #define SAMPLE_CHUNK 4096

@@ -81,6 +81,9 @@ int gr_field_eval(const gr_field *f, size_t n, const double *x,
 int gr_field_grad(const gr_field *f, size_t n, const double *x,
                   const double *y, const double *z, double *gx, double *gy,
                   double *gz, gr_err *e);
+/* Value and gradient together (TPMS fields share their sines and cosines). */
+int gr_field_eval_grad(const gr_field *f, size_t n, const double *x, const double *y,
+                       const double *z, double *out, double *gx, double *gy, double *gz, gr_err *e);
 
 /* ---- sampling ---- */
 /* Samples v[i + nx*(j + ny*k)] at (x0 + i*hx, y0 + j*hy, z0 + k*hz). */
