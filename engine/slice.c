@@ -320,6 +320,79 @@ done:
   return rc;
 }
 
+/* Chords by Newton along the normal from the midpoint (value and gradient):
+ * one evaluation settles chords whose zero set is well inside chord_tol; the
+ * others converge in one or two more, and a converged root more than
+ * chord_tol from the midpoint becomes an insertion (ins[seg] = 1 + index into
+ * ipt). Chords Newton cannot settle (flat gradient, a step leaving the
+ * bracket) stay in the candidate arrays (compacted, *m updated) for
+ * bracketing. */
+static int chord_newton(gr_slice_grad_fn gfn, void *ud, double tol, double chord_tol,
+                        double *ax, double *ay, double *bx, double *by, size_t *seg, size_t *m,
+                        int *ins, double *ipt, size_t *nins, gr_err *e) {
+  size_t n = *m;
+  double *mx = malloc(n * sizeof *mx), *my = malloc(n * sizeof *my), *t = calloc(n, sizeof *t);
+  double *qx = malloc(n * sizeof *qx), *qy = malloc(n * sizeof *qy), *f = malloc(n * sizeof *f);
+  double *gx = malloc(n * sizeof *gx), *gy = malloc(n * sizeof *gy);
+  size_t *act = malloc(n * sizeof *act);
+  unsigned char *left = calloc(n, 1); /* 1: bracket it */
+  int rc = GR_OK;
+  if (!mx || !my || !t || !qx || !qy || !f || !gx || !gy || !act || !left) {
+    rc = gr_fail(e, GR_EMEM, "out of memory refining chords");
+    goto done;
+  }
+  size_t na = n;
+  for (size_t k = 0; k < n; k++) {
+    mx[k] = 0.5 * (ax[k] + bx[k]);
+    my[k] = 0.5 * (ay[k] + by[k]);
+    act[k] = k;
+  }
+  for (int it = 0; it < 6 && na > 0; it++) {
+    for (size_t i = 0; i < na; i++) {
+      size_t k = act[i];
+      double h = hypot(bx[k] - mx[k], by[k] - my[k]);
+      qx[i] = mx[k] + t[k] * (bx[k] - mx[k]) / h;
+      qy[i] = my[k] + t[k] * (by[k] - my[k]) / h;
+    }
+    for (size_t s = 0; s < na && !rc; s += MS_CHUNK) {
+      size_t c = na - s < MS_CHUNK ? na - s : MS_CHUNK;
+      rc = gfn(ud, c, qx + s, qy + s, f + s, gx + s, gy + s, e);
+    }
+    if (rc) goto done;
+    size_t keep = 0;
+    for (size_t i = 0; i < na; i++) {
+      size_t k = act[i];
+      double h = hypot(bx[k] - mx[k], by[k] - my[k]);
+      double dn = (gx[i] * (bx[k] - mx[k]) + gy[i] * (by[k] - my[k])) / h;
+      double step = dn > 0.5 ? -f[i] / dn : NAN;
+      if (!isfinite(step) || fabs(t[k] + step) > h) { left[k] = 1; continue; }
+      t[k] += step;
+      if (it == 0 && fabs(t[k]) < 0.9 * chord_tol) continue; /* the chord is fine */
+      if (fabs(step) < tol) {                                 /* converged */
+        if (fabs(t[k]) > chord_tol) {
+          ipt[2 * *nins] = mx[k] + t[k] * (bx[k] - mx[k]) / h;
+          ipt[2 * *nins + 1] = my[k] + t[k] * (by[k] - my[k]) / h;
+          ins[seg[k]] = (int)++*nins;
+        }
+        continue;
+      }
+      act[keep++] = k;
+    }
+    na = keep;
+  }
+  for (size_t i = 0; i < na; i++) left[act[i]] = 1; /* not converged */
+  size_t q = 0;
+  for (size_t k = 0; k < n; k++) {
+    if (!left[k]) continue;
+    ax[q] = ax[k]; ay[q] = ay[k]; bx[q] = bx[k]; by[q] = by[k]; seg[q] = seg[k];
+    q++;
+  }
+  *m = q;
+done:
+  free(mx); free(my); free(t); free(qx); free(qy); free(f); free(gx); free(gy); free(act); free(left);
+  return rc;
+}
+
 /* Window test for the chord pass: a segment along the window border is exact. */
 typedef struct win { int on; double lo[2], hi[2]; } win;
 static int on_border(const win *w, const double *a, const double *b) {
@@ -343,16 +416,18 @@ static int chord_refine(gr_rings *r, ms_fn fn, gr_slice_grad_fn gfn, void *ud, d
   if (!nr || !ok) { gr_rings_free(nr); free(ok); return gr_fail(e, GR_EMEM, "out of memory refining chords"); }
   for (int pass = 0; pass < 12; pass++) {
     size_t n = r->npts;
-    double *A = malloc(2 * n * sizeof *A + 1), *B = malloc(2 * n * sizeof *B + 1);
+    /* per candidate chord: bracket ends a, b (+-half the chord along the
+     * outward normal through the midpoint) and its first point's index */
     double *ax = malloc(n * sizeof *ax + 1), *ay = malloc(n * sizeof *ay + 1);
     double *bx = malloc(n * sizeof *bx + 1), *by = malloc(n * sizeof *by + 1);
     double *fa = malloc(n * sizeof *fa + 1), *fb = malloc(n * sizeof *fb + 1);
-    double *root = malloc(2 * n * sizeof *root + 1);
+    double *A = malloc(2 * n * sizeof *A + 1), *B = malloc(2 * n * sizeof *B + 1);
+    double *root = malloc(2 * n * sizeof *root + 1), *ipt = malloc(2 * n * sizeof *ipt + 1);
     int *ins = calloc(n + 1, sizeof *ins);
     size_t *seg = malloc(n * sizeof *seg + 1);
     unsigned char *ok2 = NULL;
     size_t nins = 0;
-    if (!A || !B || !ax || !ay || !bx || !by || !fa || !fb || !root || !ins || !seg) {
+    if (!ax || !ay || !bx || !by || !fa || !fb || !A || !B || !root || !ipt || !ins || !seg) {
       rc = gr_fail(e, GR_EMEM, "out of memory refining chords");
       goto pass_done;
     }
@@ -375,26 +450,8 @@ static int chord_refine(gr_rings *r, ms_fn fn, gr_slice_grad_fn gfn, void *ud, d
       }
     }
     if (m == 0) goto pass_done;
-    if (gfn) {
-      /* one Newton estimate at each midpoint: chords whose zero set lies
-       * well within chord_tol need no root finding */
-      double *mx = A, *my = A + n, *gx = B, *gy = B + n;
-      for (size_t k = 0; k < m; k++) { mx[k] = 0.5 * (ax[k] + bx[k]); my[k] = 0.5 * (ay[k] + by[k]); }
-      for (size_t s = 0; s < m && !rc; s += MS_CHUNK) {
-        size_t c = m - s < MS_CHUNK ? m - s : MS_CHUNK;
-        rc = gfn(ud, c, mx + s, my + s, root + s, gx + s, gy + s, e);
-      }
-      if (rc) goto pass_done;
-      size_t q = 0;
-      for (size_t k = 0; k < m; k++) {
-        double nx = bx[k] - ax[k], ny = by[k] - ay[k], nl = hypot(nx, ny);
-        double dn = (gx[k] * nx + gy[k] * ny) / nl;
-        if (dn > 0.5 && fabs(root[k] / dn) < 0.25 * chord_tol) continue;
-        ax[q] = ax[k]; ay[q] = ay[k]; bx[q] = bx[k]; by[q] = by[k]; seg[q] = seg[k];
-        q++;
-      }
-      m = q;
-    }
+    if (gfn && (rc = chord_newton(gfn, ud, tol, chord_tol, ax, ay, bx, by, seg, &m, ins, ipt, &nins, e)))
+      goto pass_done;
     if ((rc = eval_pts(fn, ud, m, ax, ay, fa, e)) || (rc = eval_pts(fn, ud, m, bx, by, fb, e))) goto pass_done;
     size_t q = 0;
     for (size_t k = 0; k < m; k++) {
@@ -406,10 +463,14 @@ static int chord_refine(gr_rings *r, ms_fn fn, gr_slice_grad_fn gfn, void *ud, d
     }
     rc = roots_batch(fn, gfn, ud, q, A, B, fa, fb, 1, tol, root, e);
     if (rc) goto pass_done;
-    /* mark insertions: ins[global point index] = 1 + candidate index */
+    /* mark insertions: ins[global point index] = 1 + index into ipt */
     for (size_t k = 0; k < q; k++) {
       double mx = 0.5 * (A[2 * k] + B[2 * k]), my = 0.5 * (A[2 * k + 1] + B[2 * k + 1]);
-      if (hypot(root[2 * k] - mx, root[2 * k + 1] - my) > chord_tol) { ins[seg[k]] = (int)k + 1; nins++; }
+      if (hypot(root[2 * k] - mx, root[2 * k + 1] - my) > chord_tol) {
+        ipt[2 * nins] = root[2 * k];
+        ipt[2 * nins + 1] = root[2 * k + 1];
+        ins[seg[k]] = (int)++nins;
+      }
     }
     if (nins) {
       ok2 = calloc(n + nins + 1, 1);
@@ -424,7 +485,7 @@ static int chord_refine(gr_rings *r, ms_fn fn, gr_slice_grad_fn gfn, void *ud, d
           ok2[np++] = !ins[st + k];
           if (!rc && ins[st + k]) {
             size_t c = (size_t)ins[st + k] - 1;
-            rc = gr_rings_point(nr, root[2 * c], root[2 * c + 1]);
+            rc = gr_rings_point(nr, ipt[2 * c], ipt[2 * c + 1]);
             ok2[np++] = 0;
           }
         }
@@ -435,8 +496,8 @@ static int chord_refine(gr_rings *r, ms_fn fn, gr_slice_grad_fn gfn, void *ud, d
       if (!rc) { free(ok); ok = ok2; ok2 = NULL; }
     }
   pass_done:
-    free(A); free(B); free(ax); free(ay); free(bx); free(by); free(fa); free(fb);
-    free(root); free(ins); free(seg); free(ok2);
+    free(ax); free(ay); free(bx); free(by); free(fa); free(fb); free(A); free(B);
+    free(root); free(ipt); free(ins); free(seg); free(ok2);
     if (rc || nins == 0) break;
   }
   gr_rings_free(nr);
