@@ -17,6 +17,8 @@ local common = "-D cells=20,20,20 -D cell=2 -D layer=0.04 -D hatch=0.05 -D forma
 
 local function run(name, extra)
   local stats = dir .. "/" .. name .. ".yaml"
+  -- flush earlier runs' output to disk first, so each run pays for its own writes only
+  os.execute("sync")
   local t0 = gradus.clock()
   local ok = os.execute(("'%s' run '%s/recipes/lattice.lua' %s %s -o '%s/%s.cli' --stats '%s'")
     :format(exe, gradus.root, common, extra, dir, name, stats))
@@ -32,6 +34,7 @@ local direct, tdirect = run("direct", "-D kb=off -D layers=1:" .. direct_layers)
 local f = io.open(dir .. "/cold.cli", "rb")
 local bytes = f:seek("end")
 f:close()
+os.execute("sync")
 local t0 = gradus.clock()
 os.execute(("cat '%s/cold.cli' > '%s/copy.cli'"):format(dir, dir))
 local tfloor = gradus.clock() - t0
@@ -40,10 +43,10 @@ local per_layer_kb = twarm / cold.layers
 local per_layer_direct = tdirect / direct.layers
 print(("cube 40 mm, 8000 voxels, %d layers, %d classes (reuse %.0fx), CLI %.1f MB"):format(cold.layers,
   cold.templates.unique, cold.templates.reuse_ratio, bytes / 2 ^ 20))
-print(("  cold knowledge base: %6.2f s wall, templates %.2f s, peak RSS %.0f MB"):format(tcold,
-  cold.seconds.templates, cold.peak_rss_mb))
-print(("  warm knowledge base: %6.2f s wall, peak RSS %.0f MB, %d templates built"):format(twarm,
-  warm.peak_rss_mb, warm.templates.built))
+print(("  cold knowledge base: %6.2f s wall (templates %.2f s, layers %.2f s of which writing %.2f s), peak RSS %.0f MB"):format(tcold,
+  cold.seconds.templates, cold.seconds.layers, cold.seconds.write, cold.peak_rss_mb))
+print(("  warm knowledge base: %6.2f s wall (layers %.2f s of which writing %.2f s), peak RSS %.0f MB, %d templates built"):format(twarm,
+  warm.seconds.layers, warm.seconds.write, warm.peak_rss_mb, warm.templates.built))
 print(("  direct (kb=off):     %6.2f s for %d layers = %.3f s/layer (warm kb: %.4f s/layer) -> speed-up %.0fx"):format(
   tdirect, direct.layers, per_layer_direct, per_layer_kb, per_layer_direct / per_layer_kb))
 print(("  write floor: copying %.1f MB took %.2f s (%.0f MB/s); the warm job is %.1fx the floor"):format(
