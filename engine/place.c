@@ -344,6 +344,7 @@ static int classify_domain(gr_job *j, gr_err *e) {
   double x[M * M * M], y[M * M * M], z[M * M * M], f[M * M * M];
   double L = j->o.cell, grow = j->o.beam_offset + j->o.contours * j->o.hatch + j->skin;
   double h = (L + 2 * grow) / (M - 1);
+  double ilo[3] = {INFINITY, INFINITY, INFINITY}, ihi[3] = {-INFINITY, -INFINITY, -INFINITY};
   for (int v = 0; v < j->nvox; v++) {
     if (j->vspec[v] < 0) continue;
     double o[3];
@@ -372,7 +373,20 @@ static int classify_domain(gr_job *j, gr_err *e) {
       for (int q = 0; q < n; q++)
         if (isfinite(K) ? -f[q] / K < j->skin + h : 1) { j->vstate[v] = 2; break; }
     }
+    for (int q = 0; q < n; q++)
+      if (f[q] < 0) {
+        double p[3] = {x[q], y[q], z[q]};
+        for (int a = 0; a < 3; a++) { ilo[a] = fmin(ilo[a], p[a]); ihi[a] = fmax(ihi[a], p[a]); }
+      }
   }
+  /* a domain smaller than one cell along every axis holds no cell: refuse it
+   * (extent from the samples inside it, one sample spacing added) */
+  int small = isfinite(ilo[0]);
+  for (int a = 0; a < 3 && small; a++) small = ihi[a] - ilo[a] + h < L;
+  if (small)
+    return gr_fail(e, GR_EARG,
+                   "cell %g mm is larger than the design domain (about %.2g x %.2g x %.2g mm); choose a smaller cell",
+                   L, ihi[0] - ilo[0] + h, ihi[1] - ilo[1] + h, ihi[2] - ilo[2] + h);
   return GR_OK;
 }
 

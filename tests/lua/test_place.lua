@@ -235,6 +235,11 @@ t.test("bad input", function()
   t.raises(function() j:spec { surface = "nope", thickness = 0.1 } end, "unknown surface 'nope'")
   t.raises(function() j:spec { thickness = "0.1*" } end, "thickness")
   t.raises(function() j:run { output = "/nonexistent_dir/x.cli", kb = false } end, "/nonexistent_dir/x.cli")
+  -- a cell larger than the design domain (a sphere of radius 0.6 mm for 2 mm cells)
+  local k = job { cells = { 1, 1, 1 } }
+  k:domain(gradus.field.sphere(0.6, { center = { 1, 1, 1 } }))
+  t.raises(function() k:run { output = tmp .. "/small.cli", kb = false } end, "cell 2 mm is larger than the design domain")
+  t.ok(not io.open(tmp .. "/small.cli"), "no output file")
 end)
 
 os.execute("rm -rf '" .. tmp .. "'")

@@ -47,3 +47,11 @@ if command -v lua5.4 >/dev/null; then
   out=$(cd "$d" && LUA_CPATH="$OLDPWD/build/?.so" lua5.4 -e 'local g = require "gradus"; print(g.version, type(g.param), g.param("x", 5))' 2>&1)
   expect "require from stock lua5.4" "^[0-9.]+	function	5$" "$out"
 fi
+# a full disk while writing (simulated by a file size limit: writes fail with
+# EFBIG as they would with ENOSPC): an error naming the file, no output left
+mkdir -p "$d/full"
+out=$( (trap '' XFSZ; ulimit -f 200; $G run recipes/lattice.lua -D cells=2,2,1 -D kb=off -o "$d/full/out.cli" -q) 2>&1); rc=$?
+expect "full disk names the file" "cannot write $d/full/out.cli" "$out"
+[ $rc != 0 ] && pass "full disk exit non-zero" || fail "full disk exit" "rc=$rc"
+left=$(ls -A "$d/full")
+[ -z "$left" ] && pass "full disk leaves no partial file" || fail "full disk leaves no partial file" "$left"
