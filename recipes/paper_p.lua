@@ -15,6 +15,7 @@ local function run(name, over)
   p.beam_offset = profile.beam_offset
   p.thickness = lattice.EQ8
   p.res = res
+  p.faces = false -- the paper's voxel templates: hatched up to the cell's sides, no side contours
   for k, v in pairs(over) do p[k] = v end
   local out = dir .. "/" .. name .. ".cli"
   local st = lattice.run(p, out)
