@@ -77,6 +77,10 @@ static int l_job(lua_State *L) {
   o.nlasers = gr_opt_integer(L, 1, "lasers", 1);
   o.share = gr_opt_boolean(L, 1, "share", o.share);
   o.faces = gr_opt_boolean(L, 1, "faces", o.faces);
+  o.verify = gr_opt_boolean(L, 1, "verify", o.verify);
+  o.max_pore = gr_opt_number(L, 1, "max_pore", o.max_pore);
+  o.max_overmelt = gr_opt_number(L, 1, "max_overmelt", o.max_overmelt);
+  o.max_dev = gr_opt_number(L, 1, "max_dev", o.max_dev);
   gr_err e;
   gr_err_clear(&e);
   b->j = gr_job_new(&o, &e);
@@ -240,6 +244,33 @@ static void progress(void *ud, const char *stage, long done, long total) {
 }
 
 static void set_num(lua_State *L, const char *k, double v) { lua_pushnumber(L, v); lua_setfield(L, -2, k); }
+
+/* The recipe's qualification rule: opts.qualify(quality) -> ok [, reason],
+ * quality = {pore=, overmelt=, max_dev= (mm), layers=, thin_walls=, key=}.
+ * A Lua error in the rule refuses the template with the error as reason. */
+typedef struct qualctx { lua_State *L; int ref; } qualctx;
+static int qualify_cb(void *ud, const char *key, const double q[4], long thin, char *why, size_t n) {
+  qualctx *c = ud;
+  lua_State *L = c->L;
+  lua_rawgeti(L, LUA_REGISTRYINDEX, c->ref);
+  lua_createtable(L, 0, 6);
+  static const char *const names[4] = {"pore", "overmelt", "max_dev", "layers"};
+  for (int i = 0; i < 4; i++)
+    if (!isnan(q[i])) set_num(L, names[i], q[i]);
+  lua_pushinteger(L, thin);
+  lua_setfield(L, -2, "thin_walls");
+  lua_pushstring(L, key);
+  lua_setfield(L, -2, "key");
+  if (lua_pcall(L, 1, 2, 0) != LUA_OK) {
+    snprintf(why, n, "qualify rule failed: %s", lua_tostring(L, -1));
+    lua_pop(L, 1);
+    return 0;
+  }
+  int ok = lua_toboolean(L, -2);
+  if (!ok && lua_isstring(L, -1)) snprintf(why, n, "%s", lua_tostring(L, -1));
+  lua_pop(L, 2);
+  return ok;
+}
 static void set_int(lua_State *L, const char *k, long long v) { lua_pushinteger(L, v); lua_setfield(L, -2, k); }
 
 static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) {
@@ -255,6 +286,12 @@ static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) 
   set_int(L, "reused", st->reused);
   set_int(L, "corrupt_rebuilt", st->kb_corrupt);
   set_num(L, "reuse_ratio", st->classes ? (double)st->voxels / st->classes : 0);
+  set_int(L, "verified", st->verified);
+  set_int(L, "unqualified", st->unqualified);
+  if (st->unqualified_why[0]) {
+    lua_pushstring(L, st->unqualified_why);
+    lua_setfield(L, -2, "unqualified_reason");
+  }
   lua_setfield(L, -2, "templates");
   lua_newtable(L);
   static const char *const kinds[GR_NKINDS] = {"contour", "hatch", "edge"};
@@ -328,6 +365,16 @@ static int l_run(lua_State *L) {
   progctx pc = {gr_opt_boolean(L, 2, "quiet", 1), gr_now(), 0};
   r.progress = progress;
   r.progress_ud = &pc;
+  qualctx qc = {L, LUA_NOREF};
+  lua_getfield(L, 2, "qualify");
+  if (lua_isfunction(L, -1)) {
+    qc.ref = luaL_ref(L, LUA_REGISTRYINDEX);
+    r.qualify = qualify_cb;
+    r.qualify_ud = &qc;
+  } else {
+    if (!lua_isnil(L, -1)) return luaL_error(L, "job:run: option 'qualify' must be a function");
+    lua_pop(L, 1);
+  }
   /* knowledge base: a directory, true (the default directory) or false */
   char kbdir[4096] = "";
   lua_getfield(L, 2, "kb");
@@ -401,6 +448,7 @@ static int l_run(lua_State *L) {
   }
   gr_kb_close(kb);
   gr_layer_free(s.tmp);
+  luaL_unref(L, LUA_REGISTRYINDEX, qc.ref);
   if (rc) {
     for (int i = 0; i < nkeep; i++) gr_layer_free(s.kept[i]);
     free(s.kept);

@@ -27,6 +27,7 @@
 #include "expr.h"
 #include "hatch.h"
 #include "kb.h"
+#include "verify.h"
 #include "slice.h"
 #include "verify.h"
 #include "version.h"
@@ -54,6 +55,9 @@ gr_job_opts gr_job_defaults(void) {
   o.min_length = 0;
   o.threads = 2;
   o.verify = 0;
+  o.max_pore = 0.005;
+  o.max_overmelt = 0.01;
+  o.max_dev = 0.001;
   o.nlasers = 1;
   o.share = 1;
   o.faces = 1;
@@ -63,6 +67,7 @@ gr_job_opts gr_job_defaults(void) {
 /* ---- templates ---- */
 typedef struct tlayer {
   double area;        /* section area inside the voxel square, mm^2 */
+  double q[3];        /* verify(): pore, overmelt, max contour deviation (mm); NaN = not verified */
   gr_rings *section;  /* window, voxel-local */
   gr_rings *region;   /* hatch region, voxel-local */
   gr_layer *paths;    /* contours (+ thin-wall scans) clipped to [0,L]^2 */
@@ -75,6 +80,7 @@ typedef struct tmpl {
   int j0, nl;         /* local layers j0 .. j0+nl-1 */
   tlayer *l;
   double quality[4];  /* worst pore, worst overmelt, max contour deviation (mm), layers verified */
+  int qualified;      /* passed the qualification rules */
   int from_kb;
 } tmpl;
 
@@ -818,6 +824,36 @@ static int face_lines(const gr_job *j, tlayer *tl) {
   return rc;
 }
 
+/* verify() one template layer: its contours and the hatches of its region
+ * (at the layer's angle) against its section, inside the voxel square. */
+static int verify_template_layer(const gr_job *j, tlayer *tl, double angle, gr_err *e) {
+  gr_layer *l = gr_layer_new(0);
+  if (!l) return gr_fail(e, GR_EMEM, "out of memory");
+  int rc = gr_layer_append(l, tl->paths, 0, 0) ? gr_fail(e, GR_EMEM, "out of memory") : GR_OK;
+  gr_hatch_opts ho = gr_hatch_defaults();
+  ho.spacing = j->o.hatch;
+  ho.angle = angle;
+  ho.contours = 0;
+  if (rc == GR_OK) rc = gr_hatch_region(tl->region, &ho, l, NULL, e);
+  gr_verify_opts vo = gr_verify_defaults();
+  vo.track = j->o.track;
+  vo.pixel = j->o.track / 10;
+  vo.offset = j->o.beam_offset;
+  vo.spacing = j->o.hatch;
+  vo.contours = j->o.contours > 0 ? j->o.contours : 1;
+  vo.clip = 1;
+  vo.clip_lo[0] = vo.clip_lo[1] = 0;
+  vo.clip_hi[0] = vo.clip_hi[1] = j->o.cell;
+  gr_verify_result vr;
+  if (rc == GR_OK && (rc = gr_verify_layer(tl->section, l, &vo, &vr, e)) == GR_OK) {
+    tl->q[0] = vr.pore;
+    tl->q[1] = vr.overmelt;
+    tl->q[2] = vr.max_dev;
+  }
+  gr_layer_free(l);
+  return rc;
+}
+
 /* Margin of a template's slice window around the voxel: whole grid cells,
  * wide enough for the contours and hatch region of the voxel's edge. */
 static double window_margin(const gr_job *j) {
@@ -1017,6 +1053,8 @@ static int build_layers(gr_job *j, int c, const gr_field *f, const cptab *tab, i
     /* hatch ends need no sub-micrometre region: fewer edges to scan per instance */
     if (rc == GR_OK && gr_rings_simplify(tl->region, REGION_TOL)) rc = gr_fail(e, GR_EMEM, "out of memory");
     if (rc == GR_OK && face_lines(j, tl)) rc = gr_fail(e, GR_EMEM, "out of memory");
+    tl->q[0] = tl->q[1] = tl->q[2] = NAN;
+    if (rc == GR_OK && j->o.verify) rc = verify_template_layer(j, tl, gr_job_angle(j, g0 + t->j0 + q), e);
   }
   free(buf);
   gr_layer_free(tmp);
@@ -1676,7 +1714,7 @@ static gr_template *tmpl_to_record(const gr_job *j, const vclass *cl, gr_err *e)
     r->extra[q]->thin_walls = t->l[q].paths->thin_walls;
   }
   for (int i = 0; i < GR_TEMPLATE_NQ; i++) r->quality[i] = i < 4 ? t->quality[i] : NAN;
-  r->qualified = 1;
+  r->qualified = t->qualified;
   return r;
 }
 
@@ -1707,6 +1745,7 @@ static tmpl *tmpl_from_record(const gr_job *j, const gr_template *r, int nl, dou
     if (face_lines(j, &t->l[q])) { tmpl_free(t); return NULL; }
   }
   for (int i = 0; i < 4; i++) t->quality[i] = r->quality[i];
+  t->qualified = r->qualified;
   t->from_kb = 1;
   return t;
 }
@@ -1720,6 +1759,8 @@ typedef struct build_arg {
   int *wc, *wa, *wb; /* work items: class, template layers [wa, wb) */
   int nwork;
   cptab *tab;        /* shared closest points of the classes in work, or NULL */
+  gr_qualify_fn qualify;
+  void *qualify_ud;
   int *fc, *fref;    /* field items: class, reference class or -1 */
   double *fextra;    /* field items: extra margin of H, mm */
 } build_arg;
@@ -1754,6 +1795,10 @@ static int prepare_item(gr_job *j, int item, void *arg_, gr_err *e) {
         cl->t = t;
         pthread_mutex_lock(a->kbmu);
         j->st.reused++;
+        if (!t->qualified) {
+          j->st.unqualified++;
+          snprintf(j->st.unqualified_why, sizeof j->st.unqualified_why, "%.16s: stored as not qualified", cl->key);
+        }
         pthread_mutex_unlock(a->kbmu);
         return GR_OK;
       }
@@ -1818,6 +1863,39 @@ static int store_item(gr_job *j, int item, void *arg_, gr_err *e) {
   pthread_mutex_lock(a->kbmu);
   j->st.built++;
   pthread_mutex_unlock(a->kbmu);
+  tmpl *t = cl->t;
+  long thin = 0;
+  t->quality[0] = t->quality[1] = t->quality[2] = t->quality[3] = NAN;
+  if (j->o.verify) {
+    t->quality[0] = t->quality[1] = t->quality[2] = t->quality[3] = 0;
+    for (int q = 0; q < t->nl; q++) {
+      for (int k = 0; k < 3; k++)
+        if (!isnan(t->l[q].q[k])) t->quality[k] = fmax(t->quality[k], t->l[q].q[k]);
+      t->quality[3] += !isnan(t->l[q].q[0]);
+    }
+    j->st.verified++;
+  }
+  for (int q = 0; q < t->nl; q++) thin += t->l[q].paths->thin_walls;
+  /* qualification: the SPEC targets when verified, then the recipe's rule */
+  char why[256] = "";
+  t->qualified = 1;
+  if (j->o.verify) {
+    if (t->quality[0] > j->o.max_pore)
+      snprintf(why, sizeof why, "pore %.3g %% > %.3g %%", 100 * t->quality[0], 100 * j->o.max_pore);
+    else if (t->quality[1] > j->o.max_overmelt)
+      snprintf(why, sizeof why, "overmelt %.3g %% > %.3g %%", 100 * t->quality[1], 100 * j->o.max_overmelt);
+    else if (t->quality[2] > j->o.max_dev)
+      snprintf(why, sizeof why, "contour deviation %.3g um > %.3g um", 1e3 * t->quality[2], 1e3 * j->o.max_dev);
+    t->qualified = !why[0];
+  }
+  if (t->qualified && a->qualify && !a->qualify(a->qualify_ud, cl->key, t->quality, thin, why, sizeof why)) {
+    t->qualified = 0;
+    if (!why[0]) snprintf(why, sizeof why, "refused by the recipe's rule");
+  }
+  if (!t->qualified) {
+    j->st.unqualified++;
+    snprintf(j->st.unqualified_why, sizeof j->st.unqualified_why, "%.16s: %s", cl->key, why);
+  }
   if (a->kb && !cl->trimmed && a->jb < 0) {
     gr_template *r = tmpl_to_record(j, cl, e);
     if (!r) return e->code ? e->code : GR_EMEM;
@@ -2099,6 +2177,8 @@ int gr_job_run(gr_job *j, const gr_job_run_opts *r, gr_err *e) {
   memset(&ba, 0, sizeof ba);
   ba.kb = r->kb;
   ba.kbmu = &kbmu;
+  ba.qualify = r->qualify;
+  ba.qualify_ud = r->qualify_ud;
   ba.items = items;
   ba.jb = -1;
   if (!r->direct) {

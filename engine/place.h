@@ -45,6 +45,9 @@ typedef struct gr_job_stats {
   double build_time;           /* sum over layers of the slowest laser, s */
   double balanced_time;        /* the same with perfect balance, s */
   long thin_walls;             /* regions scanned by the thin-wall rule */
+  int verified;                /* templates verified in this run (opts.verify) */
+  int unqualified;             /* templates failing qualification (built, or stored so) */
+  char unqualified_why[256];   /* the last one's reason */
   long dropped;                /* hatch vectors below the minimum length */
   double solid_area;           /* sum over layers of the section area, mm^2 */
   double seconds[4];           /* wall time: classify, templates, layers, total */
@@ -82,7 +85,11 @@ typedef struct gr_job_opts {
   double quant;         /* thickness quantisation of signatures, mm (1e-3 = 1 um) */
   double min_length;    /* hatch vectors shorter than this are dropped, mm */
   int threads;          /* worker threads (>= 1) */
-  int verify;           /* 1: verify() every template layer (pore/overmelt) */
+  int verify;           /* 1: verify() every layer of each template built
+                           (pore, overmelt, contour deviation) and qualify it */
+  double max_pore;      /* qualification: worst layer pore fraction (0.005) */
+  double max_overmelt;  /* qualification: worst layer overmelt fraction (0.01) */
+  double max_dev;       /* qualification: contour deviation, mm (0.001) */
   int nlasers;          /* lasers (the machine may replace it) */
   int share;            /* 1: classes differing only in T share closest points
                            (same result, much faster); 0: each class alone */
@@ -111,6 +118,12 @@ int gr_job_set_machine(gr_job *j, const gr_machine *m, gr_err *e);
 
 typedef int (*gr_layer_sink)(void *ud, int g, const gr_layer *l, gr_err *e);
 typedef void (*gr_progress_fn)(void *ud, const char *stage, long done, long total);
+/* A recipe's qualification rule: quality = {worst pore, worst overmelt,
+ * max contour deviation mm, layers verified} (NaN when not verified),
+ * thin_walls = thin-wall scans in the template. Returns 1 (qualified) or 0,
+ * with a reason in why. Called on the calling thread. */
+typedef int (*gr_qualify_fn)(void *ud, const char *key, const double quality[4], long thin_walls,
+                             char *why, size_t n);
 typedef struct gr_kb gr_kb;
 typedef struct gr_job_run_opts {
   gr_kb *kb;               /* knowledge base, or NULL */
@@ -120,6 +133,8 @@ typedef struct gr_job_run_opts {
   void *sink_ud;
   gr_progress_fn progress; /* called from the calling thread only */
   void *progress_ud;
+  gr_qualify_fn qualify;   /* extra qualification rule, or NULL */
+  void *qualify_ud;
 } gr_job_run_opts;
 /* Classify, build or load templates, and stream the layers to the sink. */
 int gr_job_run(gr_job *j, const gr_job_run_opts *r, gr_err *e);

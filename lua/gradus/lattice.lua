@@ -71,6 +71,7 @@ function M.params()
     domain = P("domain", ""),
     skin = P("skin", 0.0),
     faces = P("faces", true),
+    qualify = P("qualify", false),
   }
   return p
 end
@@ -111,7 +112,10 @@ end
 
 --- M.run(p, out): run the pipeline. p: params (see M.params) and optional
 -- rules: p.rule(i, j, k, x, y, z) -> table {surface=, thickness=, laser=,
--- seq=, skip=} per voxel; p.domain (a field, negative inside, an expression
+-- seq=, skip=} per voxel; p.qualify: true (verify every template built and
+-- qualify it by the SPEC targets) or a function(quality) -> ok, reason that
+-- adds the recipe's own rule (quality: pore, overmelt, max_dev mm, layers,
+-- thin_walls, key); p.domain (a field, negative inside, an expression
 -- or an STL file); p.skin (mm).
 -- Writes the CLI to `out`, the manifest beside it, stats to --stats, and SVG
 -- pictures of p.pictures layers. Returns the stats table.
@@ -139,7 +143,7 @@ function M.run(p, out)
     contour_first = p.contour_first, angle = p.angle, rotation = p.rotation, pattern = p.pattern,
     alternate = p.alternate, res = p.res, mode = p.mode, quant = p.quant, threads = p.threads,
     slice_cell = p.slice_cell > 0 and p.slice_cell or nil, min_length = p.min_length,
-    faces = p.faces,
+    faces = p.faces, verify = p.qualify and true or false,
   }
   job:machine(machine)
   local specs = {}
@@ -198,8 +202,12 @@ function M.run(p, out)
   local st, kept = job:run {
     output = out, format = p.format, kb = kb ~= "off" and (kb or true) or false,
     direct = kb == "off", first = first, last = last, keep = keep, split = p.split,
-    quiet = gradus.quiet(),
+    quiet = gradus.quiet(), qualify = type(p.qualify) == "function" and p.qualify or nil,
   }
+  if st.templates.unqualified > 0 and not gradus.quiet() then
+    io.stderr:write(("gradus: %d template(s) not qualified (%s)\n"):format(st.templates.unqualified,
+      st.templates.unqualified_reason or ""))
+  end
   -- manifest: every build style with laser, kind, power, speed
   if out then
     local styles = {}

@@ -217,6 +217,42 @@ t.test("the part's box: contours along the cut sides, hatches stop short of them
   end
 end)
 
+t.test("templates carry verify() figures and are qualified by the targets and a recipe's rule", function()
+  local kb = tmp .. "/kbq"
+  local function qjob(o)
+    local j = gradus.place.job { cell = 2, cells = { 1, 1, 2 }, layer = 0.04, hatch = 0.05, res = 30, verify = true,
+      max_pore = o.max_pore }
+    local s = j:spec { surface = "primitive", thickness = "0.06 + 0.01*z" }
+    for k = 0, 1 do j:voxel(0, 0, k, { spec = s }) end
+    return j
+  end
+  local seen = {}
+  local st = qjob {}:run { output = tmp .. "/q.cli", kb = kb, qualify = function(q)
+    seen[#seen + 1] = q
+    return #seen > 1, "the recipe refuses the first"
+  end }
+  t.eq(st.templates.verified, 2, "both templates verified")
+  t.eq(#seen, 2, "the rule saw both")
+  for _, q in ipairs(seen) do
+    t.eq(q.layers, 50, "every layer verified")
+    t.ok(q.pore >= 0 and q.pore < 0.005, ("pore %.4f within the target"):format(q.pore))
+    t.ok(q.overmelt >= 0 and q.overmelt < 0.01, ("overmelt %.4f within the target"):format(q.overmelt))
+  end
+  t.eq(st.templates.unqualified, 1, "one refused by the rule")
+  t.ok(st.templates.unqualified_reason:find("the recipe refuses the first", 1, true), st.templates.unqualified_reason)
+  local q, nq = 0, 0
+  for _, e in ipairs(gradus.kb.list(kb)) do
+    if e.qualified then q = q + 1 else nq = nq + 1 end
+    t.eq(e.quality.layers_verified, 50, "figures stored with the template")
+  end
+  t.eq(q, 1, "one qualified record")
+  t.eq(nq, 1, "one unqualified record")
+  -- the built-in rule: no pore fraction above max_pore (0 here: every template fails)
+  local st2 = qjob { max_pore = 0 }:run { output = tmp .. "/q2.cli", kb = false }
+  t.eq(st2.templates.unqualified, 2, "both fail max_pore = 0")
+  t.ok(st2.templates.unqualified_reason:find("pore", 1, true), st2.templates.unqualified_reason)
+end)
+
 t.test("two lasers share the work", function()
   local j = job { cells = { 2, 2, 1 }, lasers = 2 }
   local st = j:run { kb = false, first = 1, last = 10 }
