@@ -4,7 +4,10 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
 #include <time.h>
+#include <unistd.h>
 
 gr_cli_header gr_cli_header_defaults(void) {
   gr_cli_header h;
@@ -184,14 +187,16 @@ static int read_ascii(const char *path, const char *t, size_t len, size_t pos, g
                       gr_cli_layer_fn fn, void *ud, gr_err *e) {
   gr_layer *l = gr_layer_new(0);
   double *xy = NULL;
-  size_t cap = 0;
+  char *s = NULL; /* the current line, NUL-terminated (the mapped file is not) */
+  size_t cap = 0, scap = 0;
   int line = 1, have = 0, rc = GR_OK;
   for (size_t i = 0; i < pos; i++) if (t[i] == '\n') line++;
   while (pos < len && rc == GR_OK) {
-    size_t end = pos;
-    while (end < len && t[end] != '\n') end++;
-    const char *s = t + pos;
-    size_t n = end - pos;
+    const char *nl = memchr(t + pos, '\n', len - pos);
+    size_t end = nl ? (size_t)(nl - t) : len, n = end - pos;
+    if (gr_grow(&s, &scap, n + 1, 1)) { rc = gr_fail(e, GR_EMEM, "out of memory"); break; }
+    memcpy(s, t + pos, n);
+    s[n] = 0;
     if (n >= 8 && !strncmp(s, "$$LAYER/", 8)) {
       if (have) rc = fn(ud, l, e);
       gr_layer_clear(l, strtod(s + 8, NULL) * h->units);
@@ -215,7 +220,7 @@ static int read_ascii(const char *path, const char *t, size_t len, size_t pos, g
         if (q == c) { rc = gr_fail(e, GR_EPARSE, "%s:%d: bad number at coordinate %zu", path, line, k + 1); break; }
       }
       if (rc) break;
-      if (q < t + end && *q == ',') { rc = gr_fail(e, GR_EPARSE, "%s:%d: more coordinates than the count %ld", path, line, cnt); break; }
+      if (*q == ',') { rc = gr_fail(e, GR_EPARSE, "%s:%d: more coordinates than the count %ld", path, line, cnt); break; }
       if (!have) { rc = gr_fail(e, GR_EPARSE, "%s:%d: geometry before the first $$LAYER", path, line); break; }
       if (layer_block(l, poly ? (dir == 2 ? GR_OPEN : GR_CLOSED) : GR_SEGMENTS, (int)id, poly ? (int)dir : 2, xy, npts))
         rc = gr_fail(e, GR_EMEM, "out of memory");
@@ -229,6 +234,7 @@ static int read_ascii(const char *path, const char *t, size_t len, size_t pos, g
   }
   if (rc == GR_OK && have) rc = fn(ud, l, e);
   free(xy);
+  free(s);
   gr_layer_free(l);
   return rc;
 }
@@ -279,50 +285,57 @@ static int read_binary(const char *path, const unsigned char *t, size_t len, siz
   return rc;
 }
 
+/* The file is mapped, not read into memory, so that a multi-gigabyte CLI
+ * costs page cache, not heap; layers are handed to fn one at a time. */
 int gr_cli_read(const char *path, gr_cli_header *h, gr_cli_layer_fn fn, void *ud, gr_err *e) {
   FILE *f = fopen(path, "rb");
   if (!f) return gr_fail(e, GR_EIO, "cannot read %s: %s", path, strerror(errno));
-  fseek(f, 0, SEEK_END);
-  long sz = ftell(f);
-  fseek(f, 0, SEEK_SET);
-  char *t = malloc(sz > 0 ? (size_t)sz + 1 : 1);
-  if (!t) { fclose(f); return gr_fail(e, GR_EMEM, "out of memory reading %s", path); }
-  size_t len = fread(t, 1, sz > 0 ? (size_t)sz : 0, f);
+  struct stat stt;
+  if (fstat(fileno(f), &stt) || !S_ISREG(stt.st_mode)) {
+    fclose(f);
+    return gr_fail(e, GR_EIO, "cannot read %s: not a regular file", path);
+  }
+  size_t len = (size_t)stt.st_size;
+  void *map = len ? mmap(NULL, len, PROT_READ, MAP_PRIVATE, fileno(f), 0) : NULL;
   fclose(f);
-  t[len] = 0;
+  if (len && map == MAP_FAILED) return gr_fail(e, GR_EIO, "cannot map %s: %s", path, strerror(errno));
+  if (map) madvise(map, len, MADV_SEQUENTIAL);
+  const char *t = map;
   *h = gr_cli_header_defaults();
   h->layers = -1;
   const char *he = NULL;
   for (size_t i = 0; i + 13 <= len; i++)
     if (!memcmp(t + i, "$$HEADEREND", 11)) { he = t + i; break; }
+  int rc = GR_OK;
   if (len < 14 || memcmp(t, "$$HEADERSTART", 13) || !he) {
-    free(t);
-    return gr_fail(e, GR_EPARSE, "%s:1: not a CLI file (no $$HEADERSTART ... $$HEADEREND)", path);
+    rc = gr_fail(e, GR_EPARSE, "%s:1: not a CLI file (no $$HEADERSTART ... $$HEADEREND)", path);
+    goto done;
   }
   int binary = 0, line = 1;
   for (const char *c = t; c < he; c++) {
     if (*c == '\n') { line++; continue; }
     if (c != t && c[-1] != '\n') continue;
+    /* every header line ends before $$HEADEREND, so the parsers below stop in the file */
     if (!strncmp(c, "$$BINARY", 8)) binary = 1;
     else if (!strncmp(c, "$$UNITS/", 8)) {
       h->units = strtod(c + 8, NULL);
-      if (!(h->units > 0)) { free(t); return gr_fail(e, GR_EPARSE, "%s:%d: bad $$UNITS", path, line); }
+      if (!(h->units > 0)) { rc = gr_fail(e, GR_EPARSE, "%s:%d: bad $$UNITS", path, line); goto done; }
     } else if (!strncmp(c, "$$LAYERS/", 9)) h->layers = atoi(c + 9);
     else if (!strncmp(c, "$$DIMENSION/", 12))
       sscanf(c + 12, "%lf,%lf,%lf,%lf,%lf,%lf", &h->lo[0], &h->lo[1], &h->lo[2], &h->hi[0], &h->hi[1], &h->hi[2]);
   }
   h->binary = binary;
   size_t pos = (size_t)(he - t) + 11;
-  int rc;
   if (binary) {
     rc = read_binary(path, (const unsigned char *)t, len, pos, h, fn, ud, e);
   } else {
-    const char *g = strstr(he, "$$GEOMETRYSTART");
-    if (!g) { free(t); return gr_fail(e, GR_EPARSE, "%s: no $$GEOMETRYSTART", path); }
-    pos = (size_t)(g - t);
+    static const char gs[] = "$$GEOMETRYSTART";
+    while (pos + sizeof gs - 1 <= len && memcmp(t + pos, gs, sizeof gs - 1)) pos++;
+    if (pos + sizeof gs - 1 > len) { rc = gr_fail(e, GR_EPARSE, "%s: no $$GEOMETRYSTART", path); goto done; }
     while (pos < len && t[pos] != '\n') pos++;
     rc = read_ascii(path, t, len, pos + 1, h, fn, ud, e);
   }
-  free(t);
+done:
+  if (map) munmap(map, len);
   return rc;
 }

@@ -20,6 +20,13 @@ static int keep(void *ud, const gr_layer *l, gr_err *e) {
   return GR_OK;
 }
 
+/* read a whole file into g (fresh), the error into e */
+static int read_all(const char *path, got *g, gr_cli_header *h, gr_err *e) {
+  memset(g, 0, sizeof *g);
+  gr_err_clear(e);
+  return gr_cli_read(path, h, keep, g, e);
+}
+
 static gr_layer *sample_layer(double z) {
   gr_layer *l = gr_layer_new(z);
   double ring[] = {1.25, 1.5, 38.123456, 1.5, 38.123456, 39.987654, 1.25, 1.5};
@@ -102,11 +109,9 @@ TEST(malformed_ascii_names_the_line) {
   CHECK(write(fd, t, strlen(t)) == (ssize_t)strlen(t), "write");
   close(fd);
   got g;
-  memset(&g, 0, sizeof g);
   gr_cli_header h;
   gr_err e;
-  gr_err_clear(&e);
-  int rc = gr_cli_read(path, &h, keep, &g, &e);
+  int rc = read_all(path, &g, &h, &e);
   for (int k = 0; k < g.n; k++) gr_layer_free(g.l[k]);
   CHECK(rc == GR_EPARSE && strstr(e.msg, ":7:"), "hatch count mismatch on line 7: %s", e.msg);
   remove(path);
@@ -115,9 +120,39 @@ TEST(malformed_ascii_names_the_line) {
   CHECK(access("/nonexistent_dir/x.cli", F_OK) != 0, "nothing left");
 }
 
+/* The reader maps the file: a file that ends exactly on a page boundary, in
+ * the middle of a number and without a newline, must still parse (no read
+ * past the end); an empty file and a directory are refused by name. */
+TEST(file_ending_on_a_page_boundary) {
+  char path[] = "/tmp/gradus_test_cliXXXXXX";
+  int fd = mkstemp(path);
+  const char *head = "$$HEADERSTART\n$$ASCII\n$$UNITS/0.5\n$$HEADEREND\n$$GEOMETRYSTART\n$$LAYER/0.04\n";
+  const char *tail = "$$HATCHES/1,1,0,0,1,1.25";
+  size_t page = (size_t)sysconf(_SC_PAGESIZE), used = strlen(head) + strlen(tail);
+  CHECK(write(fd, head, strlen(head)) == (ssize_t)strlen(head), "write");
+  for (size_t i = used; i < page; i++) CHECK(write(fd, "\n", 1) == 1, "pad");
+  CHECK(write(fd, tail, strlen(tail)) == (ssize_t)strlen(tail), "write");
+  close(fd);
+  got g;
+  gr_cli_header h;
+  gr_err e;
+  CHECK(read_all(path, &g, &h, &e) == GR_OK, "%s", e.msg);
+  CHECK(g.n == 1 && g.l[0]->npts == 2, "one layer, one hatch");
+  if (g.n == 1 && g.l[0]->npts == 2) {
+    CHECK_NEAR(g.l[0]->z, 0.02, 1e-12);
+    CHECK_NEAR(g.l[0]->xy[3], 0.625, 1e-12); /* the last number, scaled by the units */
+  }
+  for (int k = 0; k < g.n; k++) gr_layer_free(g.l[k]);
+  CHECK(truncate(path, 0) == 0, "empty");
+  CHECK(gr_cli_read(path, &h, keep, &g, &e) == GR_EPARSE && strstr(e.msg, path), "empty file refused: %s", e.msg);
+  remove(path);
+  CHECK(gr_cli_read("/tmp", &h, keep, &g, &e) == GR_EIO && strstr(e.msg, "/tmp"), "directory refused: %s", e.msg);
+}
+
 int main(void) {
   RUN(ascii_roundtrip);
   RUN(binary_roundtrip);
   RUN(malformed_ascii_names_the_line);
+  RUN(file_ending_on_a_page_boundary);
   DONE();
 }
