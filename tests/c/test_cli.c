@@ -149,10 +149,50 @@ TEST(file_ending_on_a_page_boundary) {
   CHECK(gr_cli_read("/tmp", &h, keep, &g, &e) == GR_EIO && strstr(e.msg, "/tmp"), "directory refused: %s", e.msg);
 }
 
+/* The ASCII writer formats numbers by hand; its text must be exactly
+ * printf's "%.4f" (ties, negative zero, rounding up through a carry, huge
+ * values), so that files do not depend on which path printed them. */
+TEST(ascii_numbers_as_printf) {
+  char path[] = "/tmp/gradus_test_cliXXXXXX";
+  int fd = mkstemp(path);
+  close(fd);
+  gr_cli_header h = gr_cli_header_defaults();
+  h.units = 1;
+  h.layers = 1;
+  gr_err e;
+  gr_err_clear(&e);
+  gr_cli_writer *w = gr_cli_open(path, &h, &e);
+  CHECK(w != NULL, "%s", e.msg);
+  double v[] = {0.00005, 1.23455, 2.5e-5, -0.00001, -0.0, 0.0, 9.99995, 9.99996, 123.456789, -987.65432,
+                1e12 + 0.12345, 3e15, 0.1, 0.7, 1.00015, 39.987654, 12345.67895, -0.00005, 7.0, 1e-300};
+  size_t n = sizeof v / sizeof *v / 2;
+  gr_layer *l = gr_layer_new(0.04);
+  gr_layer_add(l, GR_OPEN, GR_CONTOUR, 0, 2, v, n);
+  CHECK(gr_cli_write_layer(w, l, &e) == GR_OK && gr_cli_close(w, 1, &e) == GR_OK, "%s", e.msg);
+  gr_layer_free(l);
+  char want[2048] = "", one[64], got_text[65536];
+  for (size_t i = 0; i < 2 * n; i++) {
+    snprintf(one, sizeof one, ",%.4f", v[i]);
+    strcat(want, one);
+  }
+  FILE *f = fopen(path, "rb");
+  size_t len = f ? fread(got_text, 1, sizeof got_text - 1, f) : 0;
+  if (f) fclose(f);
+  got_text[len] = 0;
+  const char *line = strstr(got_text, "$$POLYLINE/");
+  const char *nums = line ? strchr(line, ',') : NULL;          /* after the id */
+  nums = nums ? strchr(nums + 1, ',') : NULL;                    /* after dir */
+  nums = nums ? strchr(nums + 1, ',') : NULL;                    /* after the count */
+  CHECK(nums && !strncmp(nums, want, strlen(want)) && nums[strlen(want)] == '\n', "numbers as printf:\n got  %.300s\n want %s",
+        nums ? nums : "(none)", want);
+  remove(path);
+}
+
 int main(void) {
   RUN(ascii_roundtrip);
   RUN(binary_roundtrip);
   RUN(malformed_ascii_names_the_line);
   RUN(file_ending_on_a_page_boundary);
+  RUN(ascii_numbers_as_printf);
   DONE();
 }
