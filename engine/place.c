@@ -1346,6 +1346,11 @@ static double est_time(const gr_machine *m, int l, double lc, double lh) {
 /* Assign lasers to the voxel slots of a layer: fixed ones as given; the
  * others by longest-processing-time-first onto the laser that would finish
  * first among those that reach the voxel. */
+static int laser_reaches(const gr_machine *m, int l, const double o[3], double cell) {
+  return !(o[0] < m->lo[l][0] - EPS || o[1] < m->lo[l][1] - EPS || o[0] + cell > m->hi[l][0] + EPS ||
+           o[1] + cell > m->hi[l][1] + EPS);
+}
+
 static int assign_lasers(gr_job *j, scratch *s, const int *vox, int nslot,
                          const double *lc, const double *lh, gr_err *e) {
   const gr_machine *m = &j->m;
@@ -1355,11 +1360,16 @@ static int assign_lasers(gr_job *j, scratch *s, const int *vox, int nslot,
   int nfree = 0;
   for (int q = 0; q < nslot; q++) {
     int v = vox[q];
-    if (j->vlaser[v] >= 0) {
-      s->vlas[q] = j->vlaser[v];
+    if (j->vlaser[v] >= 0 || m->n == 1) {
+      s->vlas[q] = j->vlaser[v] >= 0 ? j->vlaser[v] : 0;
+      double o[3];
+      voxel_origin(j, v, o);
+      if (!laser_reaches(m, s->vlas[q], o, j->o.cell)) {
+        free(ord);
+        return gr_fail(e, GR_EARG, "laser %d does not reach voxel [%g, %g] x [%g, %g] mm: the machine's laser fields do not cover the part",
+                       s->vlas[q] + 1, o[0], o[0] + j->o.cell, o[1], o[1] + j->o.cell);
+      }
       load[s->vlas[q]] += est_time(m, s->vlas[q], lc[q], lh[q]);
-    } else if (m->n == 1) {
-      s->vlas[q] = 0;
     } else {
       ord[nfree++] = q;
     }
@@ -1378,9 +1388,7 @@ static int assign_lasers(gr_job *j, scratch *s, const int *vox, int nslot,
     int best = -1;
     double bt = INFINITY;
     for (int l = 0; l < m->n; l++) {
-      if (o[0] < m->lo[l][0] - EPS || o[1] < m->lo[l][1] - EPS || o[0] + j->o.cell > m->hi[l][0] + EPS ||
-          o[1] + j->o.cell > m->hi[l][1] + EPS)
-        continue;
+      if (!laser_reaches(m, l, o, j->o.cell)) continue;
       double t = load[l] + est_time(m, l, lc[q], lh[q]);
       if (t < bt) { bt = t; best = l; }
     }

@@ -173,7 +173,17 @@ function M.run(p, out)
           local laser = r.laser
           if laser == nil and zone then laser = zone(x0, y0, x0 + L, y0 + L) + 1 end
           if laser == nil and type(p.assign) == "function" then laser = p.assign(i, j, k, x0, y0, z0) end
-          if #machine.lasers > 1 and machine.lasers[1].field then
+          if laser ~= nil then
+            local l = machine.lasers[laser]
+            if not l then
+              error(("voxel (%d, %d, %d): laser %s does not exist (the machine '%s' has %d)")
+                :format(i, j, k, tostring(laser), machine.name, #machine.lasers), 0)
+            end
+            if not lasers.reaches(l, x0, y0, x0 + L, y0 + L) then
+              error(("laser fields of '%s' do not cover the part: laser %d (%s), chosen for voxel (%d, %d, %d), does not reach [%.3f, %.3f] x [%.3f, %.3f] mm")
+                :format(machine.name, laser, l.name or "?", i, j, k, x0, x0 + L, y0, y0 + L), 0)
+            end
+          else
             lasers.reach(machine, x0, y0, x0 + L, y0 + L) -- errors if nobody reaches
           end
           job:voxel(i, j, k, {

@@ -3,6 +3,7 @@
 -- and corrupt knowledge bases, trimming at a domain boundary, joining across
 -- voxels, islands, lasers, bad input.
 local t = require "gradus.testing"
+local lasers = require "gradus.lasers"
 local tmp = os.tmpname()
 os.remove(tmp)
 gradus.mkdir(tmp)
@@ -276,6 +277,20 @@ t.test("bad input", function()
   k:domain(gradus.field.sphere(0.6, { center = { 1, 1, 1 } }))
   t.raises(function() k:run { output = tmp .. "/small.cli", kb = false } end, "cell 2 mm is larger than the design domain")
   t.ok(not io.open(tmp .. "/small.cli"), "no output file")
+  -- one laser whose field misses the part, and a fixed laser that cannot reach its voxel
+  local far = lasers.normalize({ name = "far", lasers = { { name = "a", field = { lo = { 50, 50 }, hi = { 90, 90 } } } } }, "test")
+  local f1 = job { cells = { 1, 1, 1 } }
+  f1:machine(far)
+  t.raises(function() f1:run { output = tmp .. "/far.cli", kb = false } end, "laser 1 does not reach voxel %[0, 2%]")
+  t.ok(not io.open(tmp .. "/far.cli"), "no output file")
+  local two = lasers.normalize({ name = "two", lasers = { { name = "a", field = { lo = { 0, 0 }, hi = { 2, 4 } } },
+    { name = "b", field = { lo = { 2, 0 }, hi = { 4, 4 } } } } }, "test")
+  local f2 = gradus.place.job { cell = 2, cells = { 2, 1, 1 }, res = 20, lasers = 2 }
+  f2:machine(two)
+  local s2 = f2:spec { surface = "primitive", thickness = 0.1 }
+  f2:voxel(0, 0, 0, { spec = s2, laser = 1 })
+  f2:voxel(1, 0, 0, { spec = s2, laser = 1 }) -- laser 1 reaches x <= 2 only
+  t.raises(function() f2:run { kb = false, first = 1, last = 2 } end, "laser 1 does not reach voxel %[2, 4%]")
 end)
 
 os.execute("rm -rf '" .. tmp .. "'")

@@ -55,3 +55,18 @@ expect "full disk names the file" "cannot write $d/full/out.cli" "$out"
 [ $rc != 0 ] && pass "full disk exit non-zero" || fail "full disk exit" "rc=$rc"
 left=$(ls -A "$d/full")
 [ -z "$left" ] && pass "full disk leaves no partial file" || fail "full disk leaves no partial file" "$left"
+# a laser profile whose fields do not cover the part, and a malformed profile:
+# errors naming the profile and the field, no output
+cat > "$d/far.yaml" <<'YAML'
+name: far-lasers
+lasers:
+  - name: a
+    field: {lo: [100, 100], hi: [200, 200]}
+YAML
+out=$($G run recipes/lattice.lua -D cells=2,2,1 -D kb=off -D machine="$d/far.yaml" -o "$d/far.cli" -q 2>&1); rc=$?
+expect "laser fields that miss the part" "laser fields of 'far-lasers' do not cover the part" "$out"
+[ $rc != 0 ] && [ ! -e "$d/far.cli" ] && pass "uncovered part: exit non-zero, no CLI" || fail "uncovered part" "rc=$rc"
+printf 'name: bad\nlasers:\n  - name: a\n    field: {lo: [10, 0], hi: [0, 5]}\n' > "$d/bad.yaml"
+out=$($G run recipes/lattice.lua -D cells=1,1,1 -D kb=off -D machine="$d/bad.yaml" -o "$d/bad.cli" -q 2>&1); rc=$?
+expect "inverted laser field named" "bad.yaml.*lasers\[1\]\.field.*lo must be below hi" "$out"
+[ $rc != 0 ] && [ ! -e "$d/bad.cli" ] && pass "bad profile: exit non-zero, no CLI" || fail "bad profile" "rc=$rc"
