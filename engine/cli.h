@@ -12,6 +12,8 @@ typedef struct gr_cli_header {
   int layers;        /* $$LAYERS */
   double lo[3], hi[3]; /* $$DIMENSION, mm */
   int nlasers;       /* labels written for lasers 1..nlasers */
+  int buffered;      /* writer: 1 = through the page cache only (default 0:
+                        O_DIRECT where the file system allows it) */
 } gr_cli_header;
 gr_cli_header gr_cli_header_defaults(void);
 

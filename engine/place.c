@@ -1885,7 +1885,7 @@ static int store_item(gr_job *j, int item, void *arg_, gr_err *e) {
   }
   for (int q = 0; q < t->nl; q++) thin += t->l[q].paths->thin_walls;
   /* qualification: the SPEC targets when verified, then the recipe's rule */
-  char why[256] = "";
+  char why[200] = "";
   t->qualified = 1;
   if (j->o.verify) {
     if (t->quality[0] > j->o.max_pore)
