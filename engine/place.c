@@ -1460,6 +1460,25 @@ static void layer_account(gr_job *j, const gr_layer *l, gr_job_stats *st) {
   st->solid_area += l->area;
 }
 
+/* Add one layer's figures (layer_account into a zeroed struct, done by the
+ * worker that placed it) to the job's, in layer order. */
+static void layer_stats_add(gr_job_stats *st, const gr_job_stats *l) {
+  for (int k = 0; k < GR_NKINDS; k++) {
+    st->vectors[k] += l->vectors[k];
+    st->length[k] += l->length[k];
+  }
+  for (int la = 0; la < GR_MAX_LASERS; la++) {
+    st->laser_time[la] += l->laser_time[la];
+    st->laser_length[la] += l->laser_length[la];
+  }
+  st->jumps += l->jumps;
+  st->jump_length += l->jump_length;
+  st->build_time += l->build_time;
+  st->balanced_time += l->balanced_time;
+  st->thin_walls += l->thin_walls;
+  st->solid_area += l->solid_area;
+}
+
 /* Place global layer g (1..N) into `out`. */
 static int place_layer(gr_job *j, int g, scratch *s, gr_layer *out, gr_err *e) {
   int k = layer_row(j, g);
@@ -2074,6 +2093,7 @@ typedef struct lpipe {
   gr_job *j;
   int ga, gb, next, written, S, failed;
   gr_layer **slot;
+  gr_job_stats *acct; /* per slot: the layer's figures (layer_account) */
   int *ready;
   pthread_mutex_t mu;
   pthread_cond_t cv;
@@ -2094,6 +2114,10 @@ static void *lpipe_worker(void *p_) {
     int g = p->next++;
     pthread_mutex_unlock(&p->mu);
     int rc = ok ? place_layer(p->j, g, &s, p->slot[g % p->S], &e) : gr_fail(&e, GR_EMEM, "out of memory");
+    if (rc == GR_OK) {
+      memset(&p->acct[g % p->S], 0, sizeof *p->acct);
+      layer_account(p->j, p->slot[g % p->S], &p->acct[g % p->S]);
+    }
     pthread_mutex_lock(&p->mu);
     if (rc) {
       if (!p->failed) { p->failed = 1; p->err = e; }
@@ -2118,7 +2142,11 @@ static int run_layers(gr_job *j, int ga, int gb, const gr_job_run_opts *r, long 
   p.S = 4 * j->o.threads + 2;
   p.slot = calloc(p.S, sizeof *p.slot);
   p.ready = calloc(p.S, sizeof *p.ready);
-  if (!p.slot || !p.ready) { free(p.slot); free(p.ready); return gr_fail(e, GR_EMEM, "out of memory"); }
+  p.acct = calloc(p.S, sizeof *p.acct);
+  if (!p.slot || !p.ready || !p.acct) {
+    free(p.slot); free(p.ready); free(p.acct);
+    return gr_fail(e, GR_EMEM, "out of memory");
+  }
   for (int i = 0; i < p.S; i++)
     if (!(p.slot[i] = gr_layer_new(0))) p.failed = 1;
   pthread_mutex_init(&p.mu, NULL);
@@ -2138,7 +2166,7 @@ static int run_layers(gr_job *j, int ga, int gb, const gr_job_run_opts *r, long 
     pthread_mutex_unlock(&p.mu);
     if (failed) break;
     gr_layer *l = p.slot[g % p.S];
-    layer_account(j, l, &j->st);
+    layer_stats_add(&j->st, &p.acct[g % p.S]);
     if (r->sink) rc = r->sink(r->sink_ud, g, l, e);
     pthread_mutex_lock(&p.mu);
     p.ready[g % p.S] = 0;
@@ -2158,6 +2186,7 @@ static int run_layers(gr_job *j, int ga, int gb, const gr_job_run_opts *r, long 
   for (int i = 0; i < p.S; i++) gr_layer_free(p.slot[i]);
   free(p.slot);
   free(p.ready);
+  free(p.acct);
   pthread_mutex_destroy(&p.mu);
   pthread_cond_destroy(&p.cv);
   return rc;
