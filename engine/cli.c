@@ -255,6 +255,15 @@ int gr_cli_close(gr_cli_writer *w, int commit, gr_err *e) {
 }
 
 /* ---- reader ---- */
+/* The file is mapped; pages already parsed are given back every 64 MiB so
+ * that reading a multi-gigabyte CLI keeps a bounded resident set. */
+static void drop_parsed(const char *base, size_t *dropped, size_t pos) {
+  size_t pg = (size_t)sysconf(_SC_PAGESIZE), upto = pos / pg * pg;
+  if (upto - *dropped < ((size_t)64 << 20)) return;
+  madvise((void *)(base + *dropped), upto - *dropped, MADV_DONTNEED);
+  *dropped = upto;
+}
+
 static int layer_block(gr_layer *l, int shape, int id, int dir, const double *xy, size_t n) {
   int kind = (id - 1) % 3, laser = (id - 1) / 3;
   if (id < 1) kind = GR_EDGE, laser = 0;
@@ -266,7 +275,7 @@ static int read_ascii(const char *path, const char *t, size_t len, size_t pos, g
   gr_layer *l = gr_layer_new(0);
   double *xy = NULL;
   char *s = NULL; /* the current line, NUL-terminated (the mapped file is not) */
-  size_t cap = 0, scap = 0;
+  size_t cap = 0, scap = 0, dropped = 0;
   int line = 1, have = 0, rc = GR_OK;
   for (size_t i = 0; i < pos; i++) if (t[i] == '\n') line++;
   while (pos < len && rc == GR_OK) {
@@ -277,6 +286,7 @@ static int read_ascii(const char *path, const char *t, size_t len, size_t pos, g
     s[n] = 0;
     if (n >= 8 && !strncmp(s, "$$LAYER/", 8)) {
       if (have) rc = fn(ud, l, e);
+      drop_parsed(t, &dropped, pos);
       gr_layer_clear(l, strtod(s + 8, NULL) * h->units);
       have = 1;
     } else if ((n >= 11 && !strncmp(s, "$$POLYLINE/", 11)) || (n >= 10 && !strncmp(s, "$$HATCHES/", 10))) {
@@ -325,7 +335,7 @@ static int read_binary(const char *path, const unsigned char *t, size_t len, siz
                        gr_cli_layer_fn fn, void *ud, gr_err *e) {
   gr_layer *l = gr_layer_new(0);
   double *xy = NULL;
-  size_t cap = 0;
+  size_t cap = 0, dropped = 0;
   int have = 0, rc = GR_OK;
   while (pos < len && rc == GR_OK) {
     if (len - pos < 2) { rc = gr_fail(e, GR_EPARSE, "%s: byte %zu: truncated command", path, pos); break; }
@@ -335,6 +345,7 @@ static int read_binary(const char *path, const unsigned char *t, size_t len, siz
     if (cmd == 127) {
       if (len - pos < 4) { rc = gr_fail(e, GR_EPARSE, "%s: byte %zu: truncated layer", path, at); break; }
       if (have) rc = fn(ud, l, e);
+      drop_parsed((const char *)t, &dropped, at);
       gr_layer_clear(l, rd_f32(t + pos) * h->units);
       have = 1;
       pos += 4;
@@ -390,10 +401,15 @@ int gr_cli_read(const char *path, gr_cli_header *h, gr_cli_layer_fn fn, void *ud
     goto done;
   }
   int binary = 0, line = 1;
-  for (const char *c = t; c < he; c++) {
-    if (*c == '\n') { line++; continue; }
-    if (c != t && c[-1] != '\n') continue;
-    /* every header line ends before $$HEADEREND, so the parsers below stop in the file */
+  for (const char *hl = t; hl < he; hl++) {
+    if (*hl == '\n') { line++; continue; }
+    if (hl != t && hl[-1] != '\n') continue;
+    /* a NUL-terminated copy of the line: the mapped file has no NUL, and
+     * sscanf would otherwise measure the whole file (or run past its end) */
+    char c[256];
+    size_t k = 0;
+    while (k + 1 < sizeof c && hl + k < he && hl[k] != '\n') { c[k] = hl[k]; k++; }
+    c[k] = 0;
     if (!strncmp(c, "$$BINARY", 8)) binary = 1;
     else if (!strncmp(c, "$$UNITS/", 8)) {
       h->units = strtod(c + 8, NULL);

@@ -127,7 +127,7 @@ TEST(malformed_ascii_names_the_line) {
 TEST(file_ending_on_a_page_boundary) {
   char path[] = "/tmp/gradus_test_cliXXXXXX";
   int fd = mkstemp(path);
-  const char *head = "$$HEADERSTART\n$$ASCII\n$$UNITS/0.5\n$$HEADEREND\n$$GEOMETRYSTART\n$$LAYER/0.04\n";
+  const char *head = "$$HEADERSTART\n$$ASCII\n$$UNITS/0.5\n$$DIMENSION/1,2,3,4,5,6.5\n$$HEADEREND\n$$GEOMETRYSTART\n$$LAYER/0.04\n";
   const char *tail = "$$HATCHES/1,1,0,0,1,1.25";
   size_t page = (size_t)sysconf(_SC_PAGESIZE), used = strlen(head) + strlen(tail);
   CHECK(write(fd, head, strlen(head)) == (ssize_t)strlen(head), "write");
@@ -139,6 +139,7 @@ TEST(file_ending_on_a_page_boundary) {
   gr_err e;
   CHECK(read_all(path, &g, &h, &e) == GR_OK, "%s", e.msg);
   CHECK(g.n == 1 && g.l[0]->npts == 2, "one layer, one hatch");
+  CHECK(h.lo[0] == 1 && h.hi[2] == 6.5, "header dimension read (%g .. %g)", h.lo[0], h.hi[2]);
   if (g.n == 1 && g.l[0]->npts == 2) {
     CHECK_NEAR(g.l[0]->z, 0.02, 1e-12);
     CHECK_NEAR(g.l[0]->xy[3], 0.625, 1e-12); /* the last number, scaled by the units */
