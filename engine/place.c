@@ -1074,8 +1074,10 @@ typedef struct scratch {
   gr_rings *rg;          /* region translated to global coordinates */
   gr_layer *hl;          /* hatch output of one voxel */
   gr_layer *cont;        /* contour pieces of the layer, block.laser = voxel slot */
-  seg *segs;
-  size_t nseg, capseg;
+  seg *segs, *segs2;     /* the layer's hatch segments; segs2: sorting space */
+  size_t nseg, capseg, capseg2;
+  size_t *bucket;        /* sorting: counts per (laser, line) */
+  size_t capbucket;
   double *vtime;         /* per voxel slot: estimated scan time */
   int *vlas;             /* per voxel slot: laser */
   size_t *vseg0, *vseg1; /* per voxel slot: its segments */
@@ -1096,6 +1098,8 @@ static void scratch_free(scratch *s) {
   gr_layer_free(s->hl);
   gr_layer_free(s->cont);
   free(s->segs);
+  free(s->segs2);
+  free(s->bucket);
   free(s->vtime);
   free(s->vlas);
   free(s->vseg0);
@@ -1129,6 +1133,50 @@ static int seg_cmp(const void *a, const void *b) {
   if (p->laser != q->laser) return p->laser < q->laser ? -1 : 1;
   if (p->line != q->line) return p->line < q->line ? -1 : 1;
   return (p->s0 > q->s0) - (p->s0 < q->s0);
+}
+
+/* Order the layer's segments as seg_cmp does, stably: a counting sort on
+ * (laser, line), then insertion sort by s0 within a line (a line crosses
+ * one row of voxels, so few segments share it). qsort when the lines are
+ * too sparse for buckets. */
+static int sort_segs(scratch *s, gr_err *e) {
+  size_t n = s->nseg;
+  if (n < 2) return GR_OK;
+  long lo = LONG_MAX, hi = LONG_MIN;
+  int lmax = 0;
+  for (size_t r = 0; r < n; r++) {
+    if (s->segs[r].line < lo) lo = s->segs[r].line;
+    if (s->segs[r].line > hi) hi = s->segs[r].line;
+    if (s->segs[r].laser > lmax) lmax = s->segs[r].laser;
+  }
+  size_t nl = (size_t)(hi - lo) + 1, nb = nl * (size_t)(lmax + 1);
+  if (hi - lo > 4 * (long)n + 4096 || nb > 8 * n + 65536) {
+    qsort(s->segs, n, sizeof *s->segs, seg_cmp);
+    return GR_OK;
+  }
+  if (gr_grow(&s->bucket, &s->capbucket, nb + 1, sizeof *s->bucket) ||
+      gr_grow(&s->segs2, &s->capseg2, n, sizeof *s->segs2))
+    return gr_fail(e, GR_EMEM, "out of memory");
+  size_t *c = s->bucket;
+  memset(c, 0, (nb + 1) * sizeof *c);
+  for (size_t r = 0; r < n; r++) c[(size_t)s->segs[r].laser * nl + (size_t)(s->segs[r].line - lo) + 1]++;
+  for (size_t b = 0; b < nb; b++) c[b + 1] += c[b];
+  for (size_t r = 0; r < n; r++) s->segs2[c[(size_t)s->segs[r].laser * nl + (size_t)(s->segs[r].line - lo)]++] = s->segs[r];
+  /* c[b] is now the end of bucket b */
+  for (size_t b = 0, a = 0; b < nb; a = c[b++])
+    for (size_t r = a + 1; r < c[b]; r++) {
+      seg x = s->segs2[r];
+      size_t q = r;
+      while (q > a && s->segs2[q - 1].s0 > x.s0) { s->segs2[q] = s->segs2[q - 1]; q--; }
+      s->segs2[q] = x;
+    }
+  seg *t = s->segs;
+  size_t tc = s->capseg;
+  s->segs = s->segs2;
+  s->capseg = s->capseg2;
+  s->segs2 = t;
+  s->capseg2 = tc;
+  return GR_OK;
 }
 
 /* The hatch angle of global layer g (1-based), degrees in [0, 360). */
@@ -1558,7 +1606,7 @@ static int place_layer(gr_job *j, int g, scratch *s, gr_layer *out, gr_err *e) {
     return GR_OK;
   }
   /* continuous: join hatches along lines across voxels, contours across voxels */
-  qsort(s->segs, s->nseg, sizeof *s->segs, seg_cmp);
+  if (sort_segs(s, e)) return e->code;
   size_t w = 0;
   double tol = 1e-7;
   for (size_t r = 0; r < s->nseg; r++) {
