@@ -66,7 +66,9 @@ typedef struct gr_hatch_report {
   size_t links;         /* zigzag links joining adjacent vectors */
   size_t dropped;       /* vectors dropped for being shorter than min_length */
   double dropped_length;/* their total length, mm */
-  int thin_walls;       /* components scanned by the thin-wall rule */
+  int thin_walls;       /* slivers / components scanned by the thin-wall rule */
+  size_t thin_scans;    /* thin-wall centre lines emitted (not in contours) */
+  double thin_length;   /* their length, mm */
   double hatch_offset;  /* the offset h of the hatch region used, mm */
 } gr_hatch_report;
 
