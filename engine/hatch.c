@@ -596,7 +596,7 @@ done:
  * the slivers (8-connected components). Each sliver's centre line is traced
  * from its deepest node along the ridge of the exact distance (predict a
  * step along the line, then move to the deepest point across it) until the
- * wall gets thinner than THIN_STOP, the line reaches the core's melt, a line
+ * wall gets thinner than h/8 (a tip), the line reaches the core's melt, a line
  * already traced, or closes on itself; at a tip it is cut back where the
  * wall is narrower than THIN_MIN (half width) or within THIN_TIP of the tip. */
 #define THIN_CELL 16   /* grid cell h = d / THIN_CELL */

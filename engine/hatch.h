@@ -19,10 +19,16 @@
  *    section when b >= d/2 (no overmelt). A positive gap (<= d/2) reduces
  *    the double melt under the contour at the risk of slivers; measure it
  *    with gr_verify_layer.
- *  - thin walls: a section component whose offset by b is empty (maximum
- *    inner distance < b) gets a contour-only scan along its offset by half
- *    its maximum inner distance, or, if that too is empty, a centre line
- *    through its deepest point; each counts in gr_layer.thin_walls. */
+ *  - thin walls: where the contour at b and the hatches cannot reach - the
+ *    "slivers", section points farther than b from the offset by b: a
+ *    component whose offset is empty, or a thin tail of a thick one - the
+ *    sliver's centre line is scanned: an open polyline (GR_OPEN, GR_CONTOUR,
+ *    dir GR_DIR_THIN) along the ridge of the section's distance field,
+ *    stopped where the half width drops below d/16 and 0.8 b before a tip
+ *    (less overmelt), and where it reaches the contour's melt. A component
+ *    thinner than 2b everywhere always gets a scan (a dot if tiny).
+ *    Each scanned sliver counts in gr_layer.thin_walls; gr_verify_layer
+ *    counts these lines apart from the contours. */
 #ifndef GR_HATCH_H
 #define GR_HATCH_H
 #include "paths.h"

@@ -10,7 +10,7 @@
 --   thin     = thin-wall centre lines (slivers narrower than 2b): scans and length,
 --              not in dev (they follow a wall's middle, not the offset b)
 --   gradus run recipes/quality.lua [-D step=5] [-D surfaces=primitive,gyroid,diamond]
---     [-D layers=1] (one line per checked layer)
+--     [-D layers=1] (one line per checked layer) [-D sheet_thickness=EXPR]
 local lattice = require "gradus.lattice"
 local step = gradus.param("step", 5)
 local res = gradus.param("res", 40)
@@ -19,7 +19,11 @@ local kinds = gradus.param("kinds", "sheet,network")
 local modes = gradus.param("modes", "exact,mesh")
 local per_layer = tonumber(gradus.param("layers", 0)) == 1
 local d, t, b, L = 0.05, 0.04, 0.025, 2.0
-local T = { sheet = "0.1*(2*sin(pi*(w+1)/4)+1)", network = "0.1" }
+-- sheets: the paper's eq. (8), graded inside each cell (w wraps at the cell's
+-- faces, so the thickness jumps there: see doc/quality.md); -D
+-- sheet_thickness='0.1*(2*sin(pi*min(max(z,0),2)/4)+1)' is the same inside
+-- the block and continuous across its faces
+local T = { sheet = gradus.param("sheet_thickness", "0.1*(2*sin(pi*(w+1)/4)+1)"), network = "0.1" }
 
 local kbdir = os.tmpname()
 os.remove(kbdir)
