@@ -600,7 +600,7 @@ done:
  * already traced, or closes on itself; at a tip it is cut back where the
  * wall is narrower than THIN_MIN (half width) or within THIN_TIP of the tip. */
 #define THIN_CELL 16   /* grid cell h = d / THIN_CELL */
-#define THIN_NODES 4000000.0 /* larger grids get a coarser cell */
+#define THIN_NODES 4000000.0 /* larger grids get a coarser cell (17 bytes a node) */
 #define THIN_MIN 16    /* scanned where the half width is >= d / THIN_MIN */
 #define THIN_TIP 0.8   /* ... and at least THIN_TIP * b from a tip */
 #define THIN_TRACES 16 /* traces per sliver (branches) */
@@ -844,13 +844,15 @@ static int thin_walls(const gr_rings *sec, const gr_hatch_opts *o, double b, gr_
   g.D = malloc(nn * sizeof *g.D);
   g.cov = malloc(nn * sizeof *g.cov);
   g.mark = calloc(nn, 1);
-  stack = malloc(nn * sizeof *stack);
-  comp = malloc(nn * sizeof *comp);
-  if (!g.D || !g.cov || !g.mark || !stack || !comp) { rc = gr_fail(e, GR_EMEM, "hatch: out of memory (thin-wall grid %d x %d)", g.nx, g.ny); goto done; }
+  if (!g.D || !g.cov || !g.mark) { rc = gr_fail(e, GR_EMEM, "hatch: out of memory (thin-wall grid %d x %d)", g.nx, g.ny); goto done; }
   if ((rc = gr_polydist_grid(pd, g.x0, g.y0, h, g.nx, g.ny, 2 * b + 4 * h, g.D, e))) goto done;
   if (core_distance(&g)) { rc = gr_fail(e, GR_EMEM, "hatch: out of memory"); goto done; }
+  size_t nsl = 0; /* sliver nodes: each is flooded once */
   for (size_t k = 0; k < nn; k++)
-    if (g.D[k] < 0 && g.cov[k] * h * h > b * b) g.mark[k] = 1;
+    if (g.D[k] < 0 && g.cov[k] * h * h > b * b) { g.mark[k] = 1; nsl++; }
+  stack = malloc((nsl + 1) * sizeof *stack);
+  comp = malloc((nsl + 1) * sizeof *comp);
+  if (!stack || !comp) { rc = gr_fail(e, GR_EMEM, "hatch: out of memory (%zu sliver nodes)", nsl); goto done; }
   double wmin = d / THIN_MIN, tipm = THIN_TIP * b;
   for (size_t k0 = 0; k0 < nn; k0++) {
     if (g.mark[k0] != 1) continue;

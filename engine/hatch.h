@@ -28,7 +28,10 @@
  *    (less overmelt), and where it reaches the contour's melt. A component
  *    thinner than 2b everywhere always gets a scan (a dot if tiny).
  *    Each scanned sliver counts in gr_layer.thin_walls; gr_verify_layer
- *    counts these lines apart from the contours. */
+ *    counts these lines apart from the contours. The slivers are found on a
+ *    grid of d/16 over the section's box, at most 4M nodes: boxes wider than
+ *    about 125 d get a coarser grid, which may miss slivers narrower than a
+ *    few of its cells (a whole component it misses still gets a line). */
 #ifndef GR_HATCH_H
 #define GR_HATCH_H
 #include "paths.h"
