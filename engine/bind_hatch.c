@@ -102,13 +102,15 @@ static gr_hatch_opts read_hatch_opts(lua_State *L, int idx, const char *fn) {
 }
 
 static void push_report(lua_State *L, const gr_hatch_report *r) {
-  lua_createtable(L, 0, 7);
+  lua_createtable(L, 0, 9);
   lua_pushinteger(L, (lua_Integer)r->contours); lua_setfield(L, -2, "contours");
   lua_pushinteger(L, (lua_Integer)r->hatches); lua_setfield(L, -2, "hatches");
   lua_pushinteger(L, (lua_Integer)r->links); lua_setfield(L, -2, "links");
   lua_pushinteger(L, (lua_Integer)r->dropped); lua_setfield(L, -2, "dropped");
   lua_pushnumber(L, r->dropped_length); lua_setfield(L, -2, "dropped_length");
   lua_pushinteger(L, r->thin_walls); lua_setfield(L, -2, "thin_walls");
+  lua_pushinteger(L, (lua_Integer)r->thin_scans); lua_setfield(L, -2, "thin_scans");
+  lua_pushnumber(L, r->thin_length); lua_setfield(L, -2, "thin_length");
   lua_pushnumber(L, r->hatch_offset); lua_setfield(L, -2, "hatch_offset");
 }
 
@@ -179,6 +181,9 @@ static int h_verify(lua_State *L) {
   lua_pushnumber(L, r.solid_area); lua_setfield(L, -2, "solid_area");
   lua_pushnumber(L, r.melt_area); lua_setfield(L, -2, "melt_area");
   lua_pushinteger(L, (lua_Integer)r.contour_points); lua_setfield(L, -2, "contour_points");
+  lua_pushinteger(L, (lua_Integer)r.thin_points); lua_setfield(L, -2, "thin_points");
+  lua_pushinteger(L, (lua_Integer)r.thin_scans); lua_setfield(L, -2, "thin_scans");
+  lua_pushnumber(L, r.thin_length); lua_setfield(L, -2, "thin_length");
   lua_pushinteger(L, r.nx); lua_setfield(L, -2, "nx");
   lua_pushinteger(L, r.ny); lua_setfield(L, -2, "ny");
   return 1;
@@ -220,7 +225,8 @@ static int l_stats(lua_State *L) {
   return 1;
 }
 
-/* l:blocks() -> array of {kind=, shape=, dir=, laser= (1-based), points={x1, y1, ...}} */
+/* l:blocks() -> array of {kind=, shape=, dir=, laser= (1-based), thin= (thin-wall
+ * centre line), points={x1, y1, ...}} */
 static int l_blocks(lua_State *L) {
   gr_layer *l = gr_check_layer(L, 1);
   lua_createtable(L, (int)l->nb, 0);
@@ -232,6 +238,7 @@ static int l_blocks(lua_State *L) {
     lua_pushstring(L, b->shape >= 0 && b->shape <= GR_SEGMENTS ? SHAPE_NAMES[b->shape] : "?");
     lua_setfield(L, -2, "shape");
     lua_pushinteger(L, b->dir); lua_setfield(L, -2, "dir");
+    lua_pushboolean(L, b->dir == GR_DIR_THIN); lua_setfield(L, -2, "thin");
     lua_pushinteger(L, b->laser + 1); lua_setfield(L, -2, "laser");
     lua_createtable(L, (int)(2 * b->n), 0);
     for (size_t k = 0; k < 2 * b->n; k++) {

@@ -19,10 +19,19 @@
  *    section when b >= d/2 (no overmelt). A positive gap (<= d/2) reduces
  *    the double melt under the contour at the risk of slivers; measure it
  *    with gr_verify_layer.
- *  - thin walls: a section component whose offset by b is empty (maximum
- *    inner distance < b) gets a contour-only scan along its offset by half
- *    its maximum inner distance, or, if that too is empty, a centre line
- *    through its deepest point; each counts in gr_layer.thin_walls. */
+ *  - thin walls: where the contour at b and the hatches cannot reach - the
+ *    "slivers", section points farther than b from the offset by b: a
+ *    component whose offset is empty, or a thin tail of a thick one - the
+ *    sliver's centre line is scanned: an open polyline (GR_OPEN, GR_CONTOUR,
+ *    dir GR_DIR_THIN) along the ridge of the section's distance field,
+ *    stopped where the half width drops below d/16 and 0.8 b before a tip
+ *    (less overmelt), and where it reaches the contour's melt. A component
+ *    thinner than 2b everywhere always gets a scan (a dot if tiny).
+ *    Each scanned sliver counts in gr_layer.thin_walls; gr_verify_layer
+ *    counts these lines apart from the contours. The slivers are found on a
+ *    grid of d/16 over the section's box, at most 4M nodes: boxes wider than
+ *    about 125 d get a coarser grid, which may miss slivers narrower than a
+ *    few of its cells (a whole component it misses still gets a line). */
 #ifndef GR_HATCH_H
 #define GR_HATCH_H
 #include "paths.h"
@@ -66,7 +75,9 @@ typedef struct gr_hatch_report {
   size_t links;         /* zigzag links joining adjacent vectors */
   size_t dropped;       /* vectors dropped for being shorter than min_length */
   double dropped_length;/* their total length, mm */
-  int thin_walls;       /* components scanned by the thin-wall rule */
+  int thin_walls;       /* slivers / components scanned by the thin-wall rule */
+  size_t thin_scans;    /* thin-wall centre lines emitted (not in contours) */
+  double thin_length;   /* their length, mm */
   double hatch_offset;  /* the offset h of the hatch region used, mm */
 } gr_hatch_report;
 

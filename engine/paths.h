@@ -52,11 +52,13 @@ enum gr_shape {
   GR_OPEN = 1,     /* open polyline (a joined zigzag, a thin-wall centre line) */
   GR_SEGMENTS = 2  /* independent hatch vectors: n is even, pairs of points */
 };
+#define GR_DIR_THIN 3 /* dir of thin-wall scans (GR_OPEN, GR_CONTOUR), see hatch.h */
 typedef struct gr_block {
   int shape;       /* enum gr_shape */
   int kind;        /* enum gr_kind */
   int laser;       /* 0-based laser index */
-  int dir;         /* CLI direction: 1 CCW outer, 0 CW hole, 2 open (polylines) */
+  int dir;         /* CLI direction: 1 CCW outer, 0 CW hole, 2 open (polylines),
+                      GR_DIR_THIN: an open thin-wall centre line (written as 2) */
   size_t start, n; /* points xy[2*start .. 2*(start+n)) */
 } gr_block;
 typedef struct gr_layer {

@@ -612,6 +612,7 @@ static int clip_poly(const double *p, size_t n, int closed, int kind, int dir,
                      const double lo[2], const double hi[2], gr_layer *out,
                      double **buf, size_t *cap) {
   if (closed && n > 1 && p[0] == p[2 * (n - 1)] && p[1] == p[2 * (n - 1) + 1]) n--;
+  int odir = dir == GR_DIR_THIN ? dir : 2; /* open pieces; thin-wall lines stay tagged */
   if (n < 2) return GR_OK;
   if (gr_grow(buf, cap, n + 2, 2 * sizeof(double))) return GR_EMEM;
   double *bf = *buf;
@@ -622,7 +623,7 @@ static int clip_poly(const double *p, size_t n, int closed, int kind, int dir,
     memcpy(bf, p, n * 2 * sizeof(double));
     size_t m = n;
     if (closed) { bf[2 * n] = p[0]; bf[2 * n + 1] = p[1]; m++; }
-    return gr_layer_add(out, closed ? GR_CLOSED : GR_OPEN, kind, 0, closed ? dir : 2, bf, m);
+    return gr_layer_add(out, closed ? GR_CLOSED : GR_OPEN, kind, 0, closed ? dir : odir, bf, m);
   }
   if (!closed) s0 = 0;
   size_t nedges = closed ? n : n - 1, m = 0;
@@ -632,7 +633,7 @@ static int clip_poly(const double *p, size_t n, int closed, int kind, int dir,
     double t0, t1;
     if (!clip_seg(ax, ay, bx, by, lo, hi, &t0, &t1)) continue;
     if (t0 > 0 || m == 0) {
-      if (m >= 2 && gr_layer_add(out, GR_OPEN, kind, 0, 2, bf, m)) return GR_EMEM;
+      if (m >= 2 && gr_layer_add(out, GR_OPEN, kind, 0, odir, bf, m)) return GR_EMEM;
       bf[0] = ax + t0 * (bx - ax);
       bf[1] = ay + t0 * (by - ay);
       m = 1;
@@ -641,11 +642,11 @@ static int clip_poly(const double *p, size_t n, int closed, int kind, int dir,
     bf[2 * m + 1] = t1 < 1 ? ay + t1 * (by - ay) : by;
     m++;
     if (t1 < 1) {
-      if (m >= 2 && gr_layer_add(out, GR_OPEN, kind, 0, 2, bf, m)) return GR_EMEM;
+      if (m >= 2 && gr_layer_add(out, GR_OPEN, kind, 0, odir, bf, m)) return GR_EMEM;
       m = 0;
     }
   }
-  if (m >= 2 && gr_layer_add(out, GR_OPEN, kind, 0, 2, bf, m)) return GR_EMEM;
+  if (m >= 2 && gr_layer_add(out, GR_OPEN, kind, 0, odir, bf, m)) return GR_EMEM;
   return GR_OK;
 }
 
@@ -1328,6 +1329,7 @@ static int join_contours(scratch *s, size_t b0, size_t b1, double tol, gr_layer 
       long cand = (long)sx[3 * r + 2];
       if (cand == i || prev[cand] >= 0) continue;
       if (slot_laser[c->b[b0 + cand].laser] != slot_laser[bk->laser]) continue;
+      if ((c->b[b0 + cand].dir == GR_DIR_THIN) != (bk->dir == GR_DIR_THIN)) continue;
       double dx = sx[3 * r] - ex, dy = sx[3 * r + 1] - ey, d2 = dx * dx + dy * dy;
       if (d2 <= bd) { bd = d2; best = cand; }
     }
@@ -1367,7 +1369,10 @@ static int join_contours(scratch *s, size_t b0, size_t b1, double tol, gr_layer 
         q = next[q];
         if (q == (long)i) closed = 1;
       }
-      if (closed) {
+      if (closed && bk->dir == GR_DIR_THIN) { /* a thin-wall loop stays an open, tagged line */
+        if (gr_layer_add(out, GR_OPEN, bk->kind, slot_laser[bk->laser], GR_DIR_THIN, s->pts, m))
+          return gr_fail(e, GR_EMEM, "out of memory");
+      } else if (closed) {
         s->pts[0] = 0.5 * (s->pts[0] + s->pts[2 * (m - 1)]);
         s->pts[1] = 0.5 * (s->pts[1] + s->pts[2 * (m - 1) + 1]);
         s->pts[2 * (m - 1)] = s->pts[0];
@@ -1378,7 +1383,7 @@ static int join_contours(scratch *s, size_t b0, size_t b1, double tol, gr_layer 
         if (gr_layer_add(out, GR_CLOSED, bk->kind, slot_laser[bk->laser], a > 0 ? 1 : 0, s->pts, m))
           return gr_fail(e, GR_EMEM, "out of memory");
       } else if (m >= 2) {
-        if (gr_layer_add(out, GR_OPEN, bk->kind, slot_laser[bk->laser], 2, s->pts, m))
+        if (gr_layer_add(out, GR_OPEN, bk->kind, slot_laser[bk->laser], bk->dir == GR_DIR_THIN ? bk->dir : 2, s->pts, m))
           return gr_fail(e, GR_EMEM, "out of memory");
       }
     }

@@ -920,6 +920,38 @@ double gr_rings_max_inner_distance(const gr_rings *in, double cell, gr_err *e) {
   return rc ? -1 : best;
 }
 
+struct gr_polydist { poly_dist d; };
+
+gr_polydist *gr_polydist_new(const gr_rings *r, double bucket, gr_err *e) {
+  gr_polydist *p = calloc(1, sizeof *p);
+  if (!p) { gr_fail(e, GR_EMEM, "out of memory"); return NULL; }
+  if (pd_build(&p->d, r, bucket, e)) { pd_free(&p->d); free(p); return NULL; }
+  return p;
+}
+
+void gr_polydist_free(gr_polydist *p) {
+  if (!p) return;
+  pd_free(&p->d);
+  free(p);
+}
+
+double gr_polydist_at(const gr_polydist *p, double x, double y, double q[2]) {
+  const poly_dist *d = &p->d;
+  if (d->ne == 0) return INFINITY;
+  size_t ed = 0;
+  double t = 0, d2 = INFINITY;
+  for (double r = 2 * d->bs; !isfinite(d2); r *= 4) d2 = pd_nearest(d, x, y, r, &ed, &t);
+  const double *a = d->ab + 4 * ed;
+  if (q) { q[0] = a[0] + t * (a[2] - a[0]); q[1] = a[1] + t * (a[3] - a[1]); }
+  return pd_inside(d, ed, t, x, y) ? -sqrt(d2) : sqrt(d2);
+}
+
+int gr_polydist_grid(const gr_polydist *p, double x0, double y0, double h, int nx, int ny,
+                     double rmax, double *v, gr_err *e) {
+  ms_grid g = {nx, ny, x0, y0, h, h, NULL};
+  return pd_sample(&p->d, &g, v, rmax, e);
+}
+
 /* ---- mesh / plane ---- */
 
 typedef struct mkey { uint64_t key; size_t idx; } mkey;

@@ -71,4 +71,19 @@ int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
  * beam offset b (its offset by b is empty). Returns -1 on error (e filled). */
 double gr_rings_max_inner_distance(const gr_rings *in, double cell, gr_err *e);
 
+/* Exact in-plane distance to the edges of nested, oriented rings (bucketed;
+ * the same distance the offsets use). */
+typedef struct gr_polydist gr_polydist;
+/* NULL on error (e filled). rings must be nested (gr_rings_nest); bucket is
+ * the edge bucket size, mm (0: a sixteenth of the rings' extent). */
+gr_polydist *gr_polydist_new(const gr_rings *nested, double bucket, gr_err *e);
+void gr_polydist_free(gr_polydist *d); /* NULL is fine */
+/* Signed distance of (x, y) to the boundary (negative inside); q (may be
+ * NULL) receives the nearest boundary point. +INFINITY without edges. */
+double gr_polydist_at(const gr_polydist *d, double x, double y, double q[2]);
+/* Signed distances at the nodes (x0 + i h, y0 + j h), i < nx, j < ny, into
+ * v[i + nx j]; |values| beyond rmax are clamped to rmax (sign exact). */
+int gr_polydist_grid(const gr_polydist *d, double x0, double y0, double h, int nx, int ny,
+                     double rmax, double *v, gr_err *e);
+
 #endif

@@ -151,7 +151,18 @@ int gr_verify_layer(const gr_rings *section, const gr_layer *l, const gr_verify_
         melt_capsule(img, nx, ny, lo, px, p[2 * k], p[2 * k + 1], p[2 * k + 2], p[2 * k + 3], tr / 2);
       if (B->n == 1) melt_capsule(img, nx, ny, lo, px, p[0], p[1], p[0], p[1], tr / 2);
     }
-    if (B->kind == GR_CONTOUR && B->shape != GR_SEGMENTS) {
+    if (B->kind == GR_CONTOUR && B->dir == GR_DIR_THIN) { /* centre lines: not at b by design */
+      int in = 0;
+      for (size_t k = 0; k < B->n; k++) {
+        if (o->clip && (p[2 * k] < o->clip_lo[0] || p[2 * k] > o->clip_hi[0] ||
+                        p[2 * k + 1] < o->clip_lo[1] || p[2 * k + 1] > o->clip_hi[1]))
+          continue;
+        in = 1;
+        r->thin_points++;
+        if (k + 1 < B->n) r->thin_length += hypot(p[2 * k + 2] - p[2 * k], p[2 * k + 3] - p[2 * k + 1]);
+      }
+      r->thin_scans += (size_t)in;
+    } else if (B->kind == GR_CONTOUR && B->shape != GR_SEGMENTS) {
       size_t m = B->n - (B->shape == GR_CLOSED && B->n > 1 ? 1 : 0);
       for (size_t k = 0; k < m; k++) {
         if (o->clip && (p[2 * k] < o->clip_lo[0] + 2 * tr || p[2 * k] > o->clip_hi[0] - 2 * tr ||

@@ -31,14 +31,20 @@ typedef struct gr_verify_result {
   double melt_area;   /* melted pixels * pixel^2, mm^2 */
   double max_dev;     /* max over contour points of |dist to boundary - b_i|, mm */
   double mean_dev;    /* mean of the same, mm (0 when there are no contours) */
-  size_t contour_points; /* contour points measured */
+  size_t contour_points; /* contour points measured (thin-wall scans excluded) */
+  size_t thin_points; /* points of thin-wall centre lines (dir GR_DIR_THIN), not in
+                         the deviation: they follow a wall's middle, not b */
+  size_t thin_scans;  /* thin-wall centre lines with a point counted */
+  double thin_length; /* their length from counted points, mm */
   int nx, ny;         /* raster size, pixels */
 } gr_verify_result;
 
 /* Quality figures of layer l over section (rings need not be nested:
  * even-odd). Deviation of a contour point is the distance to the nearest
  * expected level b + i*spacing, its distance to the section boundary being
- * exact (nearest ring edge). */
+ * exact (nearest ring edge). Thin-wall centre lines (dir GR_DIR_THIN) are
+ * counted apart (thin_*) and have no deviation. With clip, points are counted
+ * inside the clip box (contour points 2 tracks inside it). */
 int gr_verify_layer(const gr_rings *section, const gr_layer *l,
                     const gr_verify_opts *o, gr_verify_result *r, gr_err *e);
 

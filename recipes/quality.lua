@@ -7,15 +7,23 @@
 --   pore     = solid area left unmelted / solid area (melt track width d)
 --   overmelt = melted area outside the solid / solid area
 --   dev      = | in-plane distance of each contour point to the true section boundary - b |
+--   thin     = thin-wall centre lines (slivers narrower than 2b): scans and length,
+--              not in dev (they follow a wall's middle, not the offset b)
 --   gradus run recipes/quality.lua [-D step=5] [-D surfaces=primitive,gyroid,diamond]
+--     [-D layers=1] (one line per checked layer) [-D sheet_thickness=EXPR]
 local lattice = require "gradus.lattice"
 local step = gradus.param("step", 5)
 local res = gradus.param("res", 40)
 local surfaces = gradus.param("surfaces", "primitive,gyroid,diamond")
 local kinds = gradus.param("kinds", "sheet,network")
 local modes = gradus.param("modes", "exact,mesh")
+local per_layer = tonumber(gradus.param("layers", 0)) == 1
 local d, t, b, L = 0.05, 0.04, 0.025, 2.0
-local T = { sheet = "0.1*(2*sin(pi*(w+1)/4)+1)", network = "0.1" }
+-- sheets: the paper's eq. (8), graded inside each cell (w wraps at the cell's
+-- faces, so the thickness jumps there: see doc/quality.md); -D
+-- sheet_thickness='0.1*(2*sin(pi*min(max(z,0),2)/4)+1)' is the same inside
+-- the block and continuous across its faces
+local T = { sheet = gradus.param("sheet_thickness", "0.1*(2*sin(pi*(w+1)/4)+1)"), network = "0.1" }
 
 local kbdir = os.tmpname()
 os.remove(kbdir)
@@ -40,7 +48,7 @@ for _, surface in ipairs(list(surfaces)) do
       end)()
       local truth = gradus.distance.offset { surface = surface, cell = L, lo = { 0, 0, 0 }, hi = { 3 * L, 3 * L, L },
         res = res, thickness = T[kind], kind = kind, mode = "exact" }
-      local worst = { pore = 0, over = 0, dev = 0, devsum = 0, npts = 0, above = 0 }
+      local worst = { pore = 0, over = 0, dev = 0, devsum = 0, npts = 0, above = 0, thin = 0, thin_length = 0 }
       for _, g in ipairs(keep) do
         local layer = kept[g]
         local z = g * t - t / 2
@@ -52,12 +60,20 @@ for _, surface in ipairs(list(surfaces)) do
         worst.dev = math.max(worst.dev, r.max_dev)
         worst.devsum = worst.devsum + r.mean_dev * r.contour_points
         worst.npts = worst.npts + r.contour_points
+        worst.thin = worst.thin + r.thin_scans
+        worst.thin_length = worst.thin_length + r.thin_length
+        if per_layer then
+          print(("  layer %2d  pore %.4f%%  overmelt %.4f%%  dev max %.3f um  thin %d (%.3f mm)")
+            :format(g, 100 * r.pore, 100 * r.overmelt, r.max_dev * 1000, r.thin_scans, r.thin_length))
+        end
       end
       rows[#rows + 1] = { surface = surface, kind = kind, mode = mode, layers = #keep, pore_max = worst.pore,
-        overmelt_max = worst.over, dev_max_um = worst.dev * 1000, dev_mean_um = worst.npts > 0 and worst.devsum / worst.npts * 1000 or 0 }
+        overmelt_max = worst.over, dev_max_um = worst.dev * 1000, dev_mean_um = worst.npts > 0 and worst.devsum / worst.npts * 1000 or 0,
+        thin_scans = worst.thin, thin_length = worst.thin_length }
       local r = rows[#rows]
-      print(("%-10s %-8s %-6s layers %2d  pore max %.4f%%  overmelt max %.4f%%  contour dev max %.3f um mean %.3f um")
-        :format(surface, kind, mode, r.layers, 100 * r.pore_max, 100 * r.overmelt_max, r.dev_max_um, r.dev_mean_um))
+      print(("%-10s %-8s %-6s layers %2d  pore max %.4f%%  overmelt max %.4f%%  contour dev max %.3f um mean %.3f um  thin %d (%.2f mm)")
+        :format(surface, kind, mode, r.layers, 100 * r.pore_max, 100 * r.overmelt_max, r.dev_max_um, r.dev_mean_um,
+          r.thin_scans, r.thin_length))
     end
   end
 end

@@ -4,6 +4,7 @@
 #include <string.h>
 #include "check.h"
 #include "hatch.h"
+#include "verify.h"
 
 static const double PI = 3.14159265358979323846;
 
@@ -380,7 +381,13 @@ TEST(thin_wall_scanned_and_counted) {
     if (B->kind != GR_CONTOUR || q[0] < 2.5) continue;
     instrip++;
     double len = gr_block_length(l, B);
-    CHECK(len > 3.5, "thin-wall scan only %g mm", len);
+    /* a centre line, cut back 0.8 b from each end (the fork of the medial
+     * axis into the end's corners included): about 2 - 0.05 mm */
+    CHECK(B->shape == GR_OPEN && B->dir == GR_DIR_THIN, "thin-wall scan tagged (shape %d dir %d)", B->shape, B->dir);
+    CHECK(len > 1.9 && len < 1.97, "thin-wall scan %g mm", len);
+    for (size_t k = 0; k < B->n; k++)
+      CHECK(fabs(q[2 * k + 1] - 0.03) < (q[2 * k] > 3.05 && q[2 * k] < 4.95 ? 1e-6 : 0.015), "(%g, %g) off the centre line",
+            q[2 * k], q[2 * k + 1]);
     for (size_t k = 0; k < B->n; k++)
       CHECK(q[2 * k] > 3 && q[2 * k] < 5 && q[2 * k + 1] > 0 && q[2 * k + 1] < 0.06, "outside strip");
   }
@@ -394,7 +401,8 @@ TEST(thin_wall_scanned_and_counted) {
   CHECK(gr_hatch_layer(dg, &o, l, &rep, &e) == GR_OK, "%s", e.msg);
   CHECK(rep.thin_walls == 1 && l->nb == 1, "diagonal: %d thin walls, %zu blocks", rep.thin_walls, l->nb);
   if (l->nb == 1) {
-    CHECK(gr_block_length(l, &l->b[0]) > 3.5, "diagonal scan %g mm", gr_block_length(l, &l->b[0]));
+    CHECK(gr_block_length(l, &l->b[0]) > 1.9 && gr_block_length(l, &l->b[0]) < 1.97, "diagonal scan %g mm",
+          gr_block_length(l, &l->b[0]));
     for (size_t k = 0; k < l->b[0].n; k++)
       CHECK(gr_rings_contains(dg, l->xy[2 * k], l->xy[2 * k + 1]), "diagonal scan point outside");
   }
@@ -404,6 +412,165 @@ TEST(thin_wall_scanned_and_counted) {
   o.offset = NULL;
   CHECK(gr_hatch_layer(r, &o, l, &rep, &e) == GR_OK, "%s", e.msg);
   CHECK(rep.thin_walls == 1, "default offset: thin walls %d", rep.thin_walls);
+  gr_layer_free(l);
+  gr_rings_free(r);
+}
+
+
+/* Lens of two circle arcs: chord 2c along y = cy, half thickness w < b in the
+ * middle. Its half width at distance x from the middle is
+ * sqrt(R^2 - x^2) - (R - w), R = (c^2 + w^2) / (2w). */
+static gr_rings *lens(double cx, double cy, double c, double w, int n) {
+  double R = (c * c + w * w) / (2 * w), a = asin(c / R);
+  gr_rings *r = gr_rings_new();
+  for (int i = 0; i < n; i++) {
+    double t = -a + 2 * a * i / n;
+    gr_rings_point(r, cx + R * sin(t), cy - (R - w) + R * cos(t));
+  }
+  for (int i = 0; i < n; i++) {
+    double t = a - 2 * a * i / n;
+    gr_rings_point(r, cx + R * sin(t), cy + (R - w) - R * cos(t));
+  }
+  gr_rings_close(r);
+  return r;
+}
+
+static size_t count_thin(const gr_layer *l, size_t *idx) {
+  size_t n = 0;
+  for (size_t b = 0; b < l->nb; b++)
+    if (l->b[b].dir == GR_DIR_THIN) {
+      if (idx) idx[n < 8 ? n : 7] = b;
+      n++;
+    }
+  return n;
+}
+
+/* Hatch r at spacing d (b = d/2, defaults otherwise) into a new layer; the
+ * thin-wall scans' block indices into ib (up to 8), their number into nthin. */
+static gr_layer *hatch_thin(const gr_rings *r, double d, gr_hatch_report *rep, size_t *nthin, size_t *ib) {
+  gr_layer *l = gr_layer_new(0);
+  gr_hatch_opts o = base(d, 0);
+  gr_err e;
+  CHECK(gr_hatch_layer(r, &o, l, rep, &e) == GR_OK, "%s", e.msg);
+  *nthin = count_thin(l, ib);
+  return l;
+}
+
+/* Verify l over r with track d, offset d/2, pixel d/20. */
+static gr_verify_result verify_d(const gr_rings *r, const gr_layer *l, double d) {
+  gr_verify_opts vo = gr_verify_defaults();
+  vo.track = d;
+  vo.offset = d / 2;
+  vo.pixel = d / 20;
+  gr_verify_result vr;
+  gr_err e;
+  CHECK(gr_verify_layer(r, l, &vo, &vr, &e) == GR_OK, "%s", e.msg);
+  return vr;
+}
+
+/* A lens narrower than 2b gets one centre line on its chord, ending where
+ * the half width drops below d/16 (the analytic length), no contour. */
+TEST(thin_lens_centre_line) {
+  double d = 0.05, c = 0.5, w = 0.02;
+  gr_rings *r = lens(1, 1, c, w, 600);
+  gr_hatch_report rep;
+  size_t ib[8], nt;
+  gr_layer *l = hatch_thin(r, d, &rep, &nt, ib);
+  CHECK(nt == 1 && l->nb == 1, "%zu thin scans of %zu blocks", nt, l->nb);
+  CHECK(rep.thin_walls == 1 && rep.thin_scans == 1 && rep.contours == 0 && rep.hatches == 0,
+        "thin walls %d, scans %zu, contours %zu, hatches %zu", rep.thin_walls, rep.thin_scans, rep.contours, rep.hatches);
+  if (l->nb == 1) {
+    const gr_block *B = &l->b[0];
+    const double *q = l->xy + 2 * B->start;
+    double R = (c * c + w * w) / (2 * w), wm = d / 16;
+    double xs = sqrt(R * R - (R - w + wm) * (R - w + wm)); /* half width wm there */
+    double len = gr_block_length(l, B);
+    CHECK(B->kind == GR_CONTOUR && B->shape == GR_OPEN, "kind %d shape %d", B->kind, B->shape);
+    CHECK_NEAR(len, 2 * xs, 2 * d / 8);
+    CHECK_NEAR(rep.thin_length, len, 1e-12);
+    for (size_t k = 0; k < B->n; k++) {
+      CHECK(fabs(q[2 * k + 1] - 1) < 2e-5, "point %zu off the chord by %g", k, q[2 * k + 1] - 1);
+      CHECK(gr_rings_contains(r, q[2 * k], q[2 * k + 1]), "point %zu outside the lens", k);
+    }
+    /* nearly all of the lens melts; verify counts the line apart */
+    gr_verify_result vr = verify_d(r, l, d);
+    CHECK(vr.pore < 0.01, "pore %g", vr.pore);
+    CHECK(vr.contour_points == 0 && vr.max_dev == 0 && vr.thin_scans == 1 && vr.thin_points == B->n,
+          "contour points %zu, dev %g, thin scans %zu, points %zu", vr.contour_points, vr.max_dev, vr.thin_scans,
+          vr.thin_points);
+    CHECK_NEAR(vr.thin_length, len, 1e-9);
+  }
+  gr_layer_free(l);
+  gr_rings_free(r);
+}
+
+/* A disc (radius 0.5) with a thin tail (0.03 x 0.4, half width 0.015 < b):
+ * a contour at b on the disc, a centre line in the tail from the contour's
+ * melt to 0.8 b before the tail's end; the layer melts all but a sliver. */
+TEST(thin_tail_on_thick_body) {
+  double d = 0.05, b = d / 2, R = 0.5, hw = 0.015, x1 = 0.9;
+  gr_rings *r = gr_rings_new();
+  int n = 720;
+  double a0 = asin(hw / R);
+  for (int i = 0; i <= n; i++) {
+    double t = a0 + (2 * PI - 2 * a0) * i / n;
+    gr_rings_point(r, R * cos(t), R * sin(t));
+  }
+  gr_rings_point(r, x1, -hw);
+  gr_rings_point(r, x1, hw);
+  gr_rings_close(r);
+  gr_hatch_report rep;
+  size_t ib[8], nt;
+  gr_layer *l = hatch_thin(r, d, &rep, &nt, ib);
+  CHECK(nt == 1, "%zu thin scans", nt);
+  CHECK(rep.thin_walls == 1 && rep.contours == 1 && rep.hatches > 0, "thin walls %d, contours %zu, hatches %zu",
+        rep.thin_walls, rep.contours, rep.hatches);
+  if (nt == 1) {
+    const gr_block *B = &l->b[ib[0]];
+    const double *q = l->xy + 2 * B->start;
+    double lo = INFINITY, hi = -INFINITY;
+    for (size_t k = 0; k < B->n; k++) {
+      lo = fmin(lo, q[2 * k]);
+      hi = fmax(hi, q[2 * k]);
+      CHECK(fabs(q[2 * k + 1]) < 1e-5, "point %zu off the tail's axis by %g", k, q[2 * k + 1]);
+    }
+    /* the contour at b (radius R - b) melts up to x = R within the tail
+     * (half width 0.015): the line starts about there, ends 0.8 b early */
+    CHECK(lo > R - b && lo < R + b, "line starts at x = %g", lo);
+    CHECK_NEAR(hi, x1 - 0.8 * b, d / 8);
+  }
+  for (size_t k = 0; k < l->nb; k++)
+    if (l->b[k].kind == GR_CONTOUR && l->b[k].dir != GR_DIR_THIN)
+      CHECK(l->b[k].shape == GR_CLOSED, "disc contour closed");
+  gr_verify_result vr = verify_d(r, l, d);
+  CHECK(vr.pore < 0.002, "pore %g", vr.pore);
+  CHECK(vr.max_dev < 1e-3, "contour deviation %g (thin line excluded)", vr.max_dev);
+  CHECK(vr.thin_scans == 1 && vr.contour_points > 100, "thin scans %zu, contour points %zu", vr.thin_scans,
+        vr.contour_points);
+  gr_layer_free(l);
+  gr_rings_free(r);
+}
+
+/* Two thin walls apart: two centre lines, two thin walls counted; a wall
+ * thinner than d/8 everywhere (a whole component) still gets a scan. */
+TEST(thin_walls_apart_and_tiny) {
+  double d = 0.05;
+  gr_rings *r = rect(0, 0, 1, 0.03);
+  double p[8] = {0, 0.5, 1, 0.5, 1, 0.53, 0, 0.53};
+  gr_rings_add(r, p, 4);
+  gr_hatch_report rep;
+  size_t nt;
+  gr_layer *l = hatch_thin(r, d, &rep, &nt, NULL);
+  CHECK(nt == 2 && rep.thin_walls == 2 && l->thin_walls == 2 && rep.contours == 0,
+        "%zu thin scans, %d thin walls, %zu contours", nt, rep.thin_walls, rep.contours);
+  CHECK(rep.thin_length > 2 * 0.95 && rep.thin_length < 2.0, "thin length %g", rep.thin_length);
+  gr_rings_free(r);
+  gr_layer_free(l);
+  r = rect(0, 0, 0.4, 0.005); /* 5 um wide: below the d/8 limit everywhere */
+  l = hatch_thin(r, d, &rep, &nt, NULL);
+  CHECK(nt == 1 && rep.thin_walls == 1, "tiny wall: %zu scans, %d thin walls", nt, rep.thin_walls);
+  for (size_t k = 0; k < l->npts; k++)
+    CHECK(gr_rings_contains(r, l->xy[2 * k], l->xy[2 * k + 1]), "tiny wall scan point %zu outside", k);
   gr_layer_free(l);
   gr_rings_free(r);
 }
@@ -454,6 +621,9 @@ int main(void) {
   RUN(min_length_drops_and_counts);
   RUN(layer_contour_and_region);
   RUN(thin_wall_scanned_and_counted);
+  RUN(thin_lens_centre_line);
+  RUN(thin_tail_on_thick_body);
+  RUN(thin_walls_apart_and_tiny);
   RUN(bad_input);
   DONE();
 }

@@ -74,6 +74,21 @@ t.test("min length and thin walls are counted", function()
   local l, r2 = hatch.layer(sec, { spacing = 0.1 })
   t.eq(r2.thin_walls, 1, "thin wall") ; t.eq(l:stats().thin_walls, 1, "layer counts it")
   t.ok(tostring(l):match("1 thin walls"), tostring(l))
+  -- the strip (0.06 wide, b = 0.05) gets a centre line, tagged, reported
+  local thin = {}
+  for _, b in ipairs(l:blocks()) do if b.thin then thin[#thin + 1] = b end end
+  t.eq(#thin, 1, "one thin-wall line") ; t.eq(r2.thin_scans, 1, "reported")
+  t.eq(thin[1].kind, "contour", "kind") ; t.eq(thin[1].shape, "open", "shape") ; t.eq(thin[1].dir, 3, "dir")
+  for q = 2, #thin[1].points, 2 do
+    local x = thin[1].points[q - 1]
+    -- on the axis, but where the medial axis forks into the end's corners
+    t.near(thin[1].points[q], 0.03, (x > 3.05 and x < 4.95) and 1e-6 or 0.015, "on the strip's axis")
+  end
+  t.ok(r2.thin_length > 1.9 and r2.thin_length < 2, ("thin length %.4f"):format(r2.thin_length))
+  t.eq(r2.contours, 1, "the square's contour only")
+  local q = hatch.verify(sec, l, { track = 0.1, clip_lo = { 2.5, -1 }, clip_hi = { 6, 1 } })
+  t.eq(q.thin_scans, 1, "verify: thin scan") ; t.eq(q.contour_points, 0, "no contour point in the strip's box")
+  t.near(q.thin_length, r2.thin_length, 1e-9, "verify: thin length") ; t.eq(q.max_dev, 0, "not a deviation")
 end)
 
 t.test("verify", function()
