@@ -743,8 +743,13 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
     if (pass == 0) maxt = 0;
     for (size_t i = 0; i < nv; i++) {
       if (!(t[i] >= 0) || t[i] > o->cell / 2) {
-        gr_fail(e, GR_EARG, "bad option '%s' (must be in [0, L/2 = %g], got %g at x=%g, y=%g, z=%g)",
-                pass ? "inside" : "thickness", o->cell / 2, t[i], vx[i], vy[i], vz[i]);
+        int out = 0;
+        double pv[3] = {vx[i], vy[i], vz[i]};
+        for (int a = 0; a < 3; a++) out |= pv[a] < o->box_lo[a] || pv[a] > o->box_hi[a];
+        gr_fail(e, GR_EARG, "bad option '%s' (must be in [0, L/2 = %g], got %g at x=%g, y=%g, z=%g%s)",
+                pass ? "inside" : "thickness", o->cell / 2, t[i], vx[i], vy[i], vz[i],
+                out ? ", outside the cell's box: the thickness is evaluated on the surface up to a margin beyond"
+                      " the part, so it must stay valid there too, e.g. clamp with min(max(z, z0), z1)" : "");
         free(buf);
         offset_free(f);
         return NULL;

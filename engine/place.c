@@ -2129,7 +2129,8 @@ static int build_classes(gr_job *j, build_arg *a, const gr_job_run_opts *r, cons
   free(cs);
   gr_err e2;
   gr_err_clear(&e2);
-  int rc2 = parallel_for(j, a->nitems, store_item, a, 1, NULL, NULL, stage, &e2);
+  /* store (and qualify) only complete templates: after a failure some layers were never built */
+  int rc2 = rc == GR_OK ? parallel_for(j, a->nitems, store_item, a, 1, NULL, NULL, stage, &e2) : GR_OK;
   if (rc == GR_OK && rc2) { rc = rc2; *e = e2; }
   /* on failure, drop any fields left */
   for (int q = 0; q < a->nitems; q++) {

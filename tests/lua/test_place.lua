@@ -291,6 +291,14 @@ t.test("bad input", function()
   f2:voxel(0, 0, 0, { spec = s2, laser = 1 })
   f2:voxel(1, 0, 0, { spec = s2, laser = 1 }) -- laser 1 reaches x <= 2 only
   t.raises(function() f2:run { kb = false, first = 1, last = 2 } end, "laser 1 does not reach voxel %[2, 4%]")
+  -- a thickness valid in the part but negative just below it (where closest points still reach):
+  -- a named error, in direct mode and through templates alike (it crashed in direct mode)
+  for _, direct in ipairs { true, false } do
+    local n = job { cells = { 1, 1, 1 }, thickness = "0.1*(2*sin(pi*z/4)+1)" }
+    t.raises(function() n:run { output = tmp .. "/neg.cli", kb = false, direct = direct } end,
+      "bad option 'thickness' %(must be in %[0, L/2 = 1%], got %-.*outside the cell's box")
+    t.ok(not io.open(tmp .. "/neg.cli"), "no output file")
+  end
 end)
 
 os.execute("rm -rf '" .. tmp .. "'")
