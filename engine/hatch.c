@@ -28,6 +28,8 @@ gr_hatch_opts gr_hatch_defaults(void) {
   o.laser = 0;
   o.cell = NAN;
   o.offset = NULL;
+  o.thin_box[0] = o.thin_box[1] = -INFINITY;
+  o.thin_box[2] = o.thin_box[3] = INFINITY;
   return o;
 }
 
@@ -819,7 +821,42 @@ static int emit_thin(const thin_line *t, const gr_hatch_opts *o, gr_layer *cl, g
 /* Thin-wall scans of the nested section sec into cl (GR_OPEN, GR_CONTOUR,
  * dir GR_DIR_THIN); every sliver scanned counts in thin_walls. A sliver that
  * is a whole component (no core) is always scanned, its wall limits relaxed. */
-static int thin_walls(const gr_rings *sec, const gr_hatch_opts *o, double b, gr_layer *cl,
+/* Is every point of the section within b (+ tol) of the core {depth >= b},
+ * whose boundary is `core` (the offset by b)? The melt of the contour at b
+ * is the core grown by b, which lies inside the section and touches only the
+ * component of its core, so a sliver shows as section boundary farther than
+ * b from the core's rings. Boundary samples every tol, each within tol/2 of
+ * the rest: a yes means no sliver deeper than tol, and the grid is skipped
+ * (most layers of a lattice). */
+static int all_covered(const gr_rings *sec, const gr_rings *core, double b, double tol, const double *box,
+                       double fail[4], gr_err *e) {
+  fail[0] = fail[1] = INFINITY;
+  fail[2] = fail[3] = -INFINITY;
+  gr_polydist *pd = core->npts ? gr_polydist_new(core, b, e) : NULL;
+  if (core->npts && !pd) return -1;
+  int ok = 1;
+  for (size_t r = 0; r < sec->nrings; r++) {
+    const double *p = gr_ring_xy(sec, r);
+    size_t n = gr_ring_len(sec, r);
+    for (size_t a = 0; a < n; a++) {
+      const double *q = p + 2 * ((a + 1) % n);
+      double len = gr_len2d(q[0] - p[2 * a], q[1] - p[2 * a + 1]);
+      int m = (int)ceil(len / tol);
+      for (int k = 0; k < m; k++) {
+        double t = (double)k / m, x = p[2 * a] + t * (q[0] - p[2 * a]), y = p[2 * a + 1] + t * (q[1] - p[2 * a + 1]);
+        if (x < box[0] || y < box[1] || x > box[2] || y > box[3]) continue;
+        if (pd && fabs(gr_polydist_at(pd, x, y, NULL)) <= b + 0.5 * tol) continue;
+        ok = 0; /* an uncovered boundary sample: where the slivers are */
+        fail[0] = fmin(fail[0], x); fail[1] = fmin(fail[1], y);
+        fail[2] = fmax(fail[2], x); fail[3] = fmax(fail[3], y);
+      }
+    }
+  }
+  gr_polydist_free(pd);
+  return ok;
+}
+
+static int thin_walls(const gr_rings *sec, const gr_rings *core, const gr_hatch_opts *o, double b, gr_layer *cl,
                       gr_hatch_report *rep, gr_err *e) {
   thin_grid g;
   memset(&g, 0, sizeof g);
@@ -828,6 +865,18 @@ static int thin_walls(const gr_rings *sec, const gr_hatch_opts *o, double b, gr_
   for (size_t k = 0; k < sec->npts; k++)
     for (int c = 0; c < 2; c++) { lo[c] = fmin(lo[c], sec->xy[2 * k + c]); hi[c] = fmax(hi[c], sec->xy[2 * k + c]); }
   double h = fmin(d / THIN_CELL, b / 4);
+  double fail[4], inner[4];
+  int cov = all_covered(sec, core, b, h, o->thin_box, fail, e);
+  if (cov < 0) return e->code;
+  if (cov) return GR_OK;
+  /* the grid covers the uncovered boundary grown by 3b: slivers lie within
+   * 2b of it (inner), and every core node within b of those is on the grid */
+  for (int c = 0; c < 2; c++) {
+    inner[c] = fail[c] - 2 * b;
+    inner[c + 2] = fail[c + 2] + 2 * b;
+    lo[c] = fmax(lo[c], fail[c] - 3 * b - 4 * h);
+    hi[c] = fmin(hi[c], fail[c + 2] + 3 * b + 4 * h);
+  }
   double area = (hi[0] - lo[0] + 4 * h) * (hi[1] - lo[1] + 4 * h);
   if (area / (h * h) > THIN_NODES) h = sqrt(area / THIN_NODES);
   g.h = h; g.b = b;
@@ -848,8 +897,13 @@ static int thin_walls(const gr_rings *sec, const gr_hatch_opts *o, double b, gr_
   if ((rc = gr_polydist_grid(pd, g.x0, g.y0, h, g.nx, g.ny, 2 * b + 4 * h, g.D, e))) goto done;
   if (core_distance(&g)) { rc = gr_fail(e, GR_EMEM, "hatch: out of memory"); goto done; }
   size_t nsl = 0; /* sliver nodes: each is flooded once */
-  for (size_t k = 0; k < nn; k++)
-    if (g.D[k] < 0 && g.cov[k] * h * h > b * b) { g.mark[k] = 1; nsl++; }
+  for (size_t k = 0; k < nn; k++) {
+    double x = g.x0 + (double)(k % (size_t)g.nx) * h, y = g.y0 + (double)(k / (size_t)g.nx) * h;
+    if (g.D[k] < 0 && g.cov[k] * h * h > b * b && x >= inner[0] && y >= inner[1] && x <= inner[2] && y <= inner[3]) {
+      g.mark[k] = 1;
+      nsl++;
+    }
+  }
   stack = malloc((nsl + 1) * sizeof *stack);
   comp = malloc((nsl + 1) * sizeof *comp);
   if (!stack || !comp) { rc = gr_fail(e, GR_EMEM, "hatch: out of memory (%zu sliver nodes)", nsl); goto done; }
@@ -875,6 +929,12 @@ static int thin_walls(const gr_rings *sec, const gr_hatch_opts *o, double b, gr_
           } else if (g.D[q] < 0) attached = 1;
         }
     }
+    int in_box = 0;
+    for (size_t m = 0; m < nc && !in_box; m++) {
+      double x = g.x0 + (double)(comp[m] % g.nx) * h, y = g.y0 + (double)(comp[m] / g.nx) * h;
+      in_box = x >= o->thin_box[0] && y >= o->thin_box[1] && x <= o->thin_box[2] && y <= o->thin_box[3];
+    }
+    if (!in_box) continue; /* a sliver of the cut, not a wall */
     double dmax = 0;
     for (size_t m = 0; m < nc; m++) dmax = fmax(dmax, -g.D[comp[m]]);
     /* a whole thin component is always scanned: limits relaxed to its size */
@@ -997,11 +1057,14 @@ int gr_hatch_layer(const gr_rings *section, const gr_hatch_opts *o, gr_layer *ou
   /* slivers the contour misses: centre lines; a component neither reached
    * nor seen by them gets the fallback line */
   size_t tb0 = cl->nb;
-  if ((rc = thin_walls(sec, o, b, cl, rep, e))) goto done;
+  if ((rc = thin_walls(sec, ofs, o, b, cl, rep, e))) goto done;
   for (size_t k = tb0; k < cl->nb; k++) mark_hit(sec, depth, box, cl->xy + 2 * cl->b[k].start, hit);
-  for (size_t r = 0; r < sec->nrings; r++)
+  for (size_t r = 0; r < sec->nrings; r++) {
+    const double *bb = box + 4 * r;
+    if (bb[2] < o->thin_box[0] || bb[3] < o->thin_box[1] || bb[0] > o->thin_box[2] || bb[1] > o->thin_box[3]) continue;
     if (!(depth[r] & 1) && !hit[r] && fabs(gr_ring_area(sec, r)) > 0)
       if ((rc = thin_fallback(sec, r, o, cl, rep, e))) goto done;
+  }
   double last = b; /* the offset held in ofs */
   for (int i = 1; i < nc; i++) {
     last = b + i * d;

@@ -62,6 +62,9 @@ typedef struct gr_hatch_opts {
   int laser;           /* 0-based laser index of every block */
   double cell;         /* offset distance-field cell, mm; NaN = d/4 */
   gr_offset_fn offset; /* region offset; NULL = gr_offset_rings */
+  double thin_box[4];  /* thin walls are looked for only where they reach this box
+                          (x0, y0, x1, y1, mm; default everywhere): a section cut from a
+                          larger one has slivers along the cut that are not walls */
 } gr_hatch_opts;
 
 /* Defaults: spacing 0.1, b = d/2, 1 contour, contours first, gap 0,

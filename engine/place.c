@@ -1023,6 +1023,9 @@ static int build_layers(gr_job *j, int c, const gr_field *f, const cptab *tab, i
   ho.cell = h;
   ho.pattern = GR_PARALLEL;
   ho.offset = offset_fine;
+  /* the window's cut edges are not walls: thin walls only where they reach the voxel */
+  ho.thin_box[0] = ho.thin_box[1] = -j->o.beam_offset;
+  ho.thin_box[2] = ho.thin_box[3] = L + j->o.beam_offset;
   gr_layer *tmp = gr_layer_new(0);
   double *buf = NULL;
   size_t cap = 0;
