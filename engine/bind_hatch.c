@@ -73,7 +73,7 @@ static gr_rings *to_rings(lua_State *L, int idx, int *owned) {
 
 static const char *const HATCH_KEYS[] = {
     "spacing", "beam_offset", "contours", "contour_first", "gap", "pattern", "alternate",
-    "angle", "island", "island_origin", "min_length", "laser", "cell", "z", NULL};
+    "angle", "island", "island_origin", "min_length", "laser", "cell", "z", "thin_box", NULL};
 
 static gr_hatch_opts read_hatch_opts(lua_State *L, int idx, const char *fn) {
   check_keys(L, idx, fn, HATCH_KEYS);
@@ -93,6 +93,7 @@ static gr_hatch_opts read_hatch_opts(lua_State *L, int idx, const char *fn) {
   o.angle = gr_opt_number(L, idx, "angle", o.angle);
   o.island = gr_opt_number(L, idx, "island", o.island);
   gr_opt_vec(L, idx, "island_origin", 2, o.island_origin);
+  gr_opt_vec(L, idx, "thin_box", 4, o.thin_box);
   o.min_length = gr_opt_number(L, idx, "min_length", o.min_length);
   int laser = gr_opt_integer(L, idx, "laser", 1);
   if (laser < 1) luaL_error(L, "bad option 'laser' (lasers count from 1, got %d)", laser);

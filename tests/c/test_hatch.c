@@ -575,6 +575,43 @@ TEST(thin_walls_apart_and_tiny) {
   gr_rings_free(r);
 }
 
+/* thin_box: of two thin walls, only the one reaching the box is scanned and
+ * counted (a window cut from a larger section has slivers along its cut);
+ * a thick square with a sliver outside the box gets no thin scan at all. */
+TEST(thin_walls_only_where_they_reach_the_box) {
+  double d = 0.05;
+  gr_rings *r = rect(0, 0, 1, 0.03);
+  double p[8] = {0, 0.5, 1, 0.5, 1, 0.53, 0, 0.53};
+  gr_rings_add(r, p, 4);
+  gr_layer *l = gr_layer_new(0);
+  gr_hatch_opts o = base(d, 0);
+  o.thin_box[0] = 0.2; o.thin_box[1] = 0.4; o.thin_box[2] = 0.8; o.thin_box[3] = 1.0;
+  gr_hatch_report rep;
+  gr_err e;
+  CHECK(gr_hatch_layer(r, &o, l, &rep, &e) == GR_OK, "%s", e.msg);
+  size_t nt = count_thin(l, NULL);
+  CHECK(nt == 1 && rep.thin_walls == 1, "%zu thin scans, %d thin walls", nt, rep.thin_walls);
+  for (size_t b = 0; b < l->nb; b++)
+    if (l->b[b].dir == GR_DIR_THIN)
+      for (size_t k = 0; k < l->b[b].n; k++)
+        CHECK(fabs(l->xy[2 * (l->b[b].start + k) + 1] - 0.515) < 1e-3, "the scanned wall is the upper one");
+  gr_layer_free(l);
+  gr_rings_free(r);
+  r = rect(0, 0, 1, 1);
+  double s[8] = {2, 0, 3, 0, 3, 0.02, 2, 0.02}; /* a 20 um sliver beside it */
+  gr_rings_add(r, s, 4);
+  l = gr_layer_new(0);
+  o.thin_box[0] = -0.1; o.thin_box[1] = -0.1; o.thin_box[2] = 1.1; o.thin_box[3] = 1.1;
+  CHECK(gr_hatch_layer(r, &o, l, &rep, &e) == GR_OK, "%s", e.msg);
+  CHECK(count_thin(l, NULL) == 0 && rep.thin_walls == 0 && rep.contours == 1, "sliver outside the box ignored: %d",
+        rep.thin_walls);
+  o.thin_box[2] = 2.5; /* now it reaches the box */
+  CHECK(gr_hatch_layer(r, &o, l, &rep, &e) == GR_OK, "%s", e.msg);
+  CHECK(rep.thin_walls == 1, "sliver reaching the box scanned: %d", rep.thin_walls);
+  gr_layer_free(l);
+  gr_rings_free(r);
+}
+
 TEST(bad_input) {
   gr_rings *r = rect(0, 0, 1, 1);
   gr_layer *l = gr_layer_new(0);
@@ -624,6 +661,7 @@ int main(void) {
   RUN(thin_lens_centre_line);
   RUN(thin_tail_on_thick_body);
   RUN(thin_walls_apart_and_tiny);
+  RUN(thin_walls_only_where_they_reach_the_box);
   RUN(bad_input);
   DONE();
 }

@@ -89,6 +89,10 @@ t.test("min length and thin walls are counted", function()
   local q = hatch.verify(sec, l, { track = 0.1, clip_lo = { 2.5, -1 }, clip_hi = { 6, 1 } })
   t.eq(q.thin_scans, 1, "verify: thin scan") ; t.eq(q.contour_points, 0, "no contour point in the strip's box")
   t.near(q.thin_length, r2.thin_length, 1e-9, "verify: thin length") ; t.eq(q.max_dev, 0, "not a deviation")
+  -- thin_box: the strip lies outside the square's box, so it is not a wall there
+  local _, r3 = hatch.layer(sec, { spacing = 0.1, thin_box = { 0, 0, 2.1, 2.1 } })
+  t.eq(r3.thin_walls, 0, "strip outside thin_box ignored") ; t.eq(r3.contours, 1, "square still contoured")
+  t.raises(function() hatch.layer(sec, { spacing = 0.1, thin_box = { 0, 0 } }) end, "thin_box")
 end)
 
 t.test("verify", function()
