@@ -536,9 +536,14 @@ static int check_window(const double lo[2], const double hi[2], double cell,
 }
 
 /* Grid geometry of a window: nx x ny nodes spanning lo..hi. */
+/* The grid over the window: nodes at most `cell` apart. A width that is a
+ * whole number of cells up to rounding (a window [o - m, o + L + m] far from
+ * the origin, say) keeps exactly that number: one node more would shrink
+ * every spacing and misalign the grid with grids of equal windows elsewhere
+ * (the shared closest-point tables rely on that alignment). */
 static ms_grid window_grid(const gr_slice_opts *o) {
-  int nx = (int)ceil((o->hi[0] - o->lo[0]) / o->cell) + 1;
-  int ny = (int)ceil((o->hi[1] - o->lo[1]) / o->cell) + 1;
+  int nx = (int)ceil((o->hi[0] - o->lo[0]) / o->cell - 1e-9) + 1;
+  int ny = (int)ceil((o->hi[1] - o->lo[1]) / o->cell - 1e-9) + 1;
   ms_grid g = {nx, ny, o->lo[0], o->lo[1], (o->hi[0] - o->lo[0]) / (nx - 1),
                (o->hi[1] - o->lo[1]) / (ny - 1), NULL};
   return g;
