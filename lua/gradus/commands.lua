@@ -21,17 +21,38 @@ function M.cli(args)
   return 0
 end
 
-local function kb_dir(args)
-  for i = 3, #args do
-    if args[i] == "--dir" then return args[i + 1] end
+local KB_USAGE = "usage: gradus kb list|verify [DIR] | show KEY [DIR] | prune [--older-than DAYS] [DIR]" ..
+  " (DIR also as --dir DIR; default: the user's cache)"
+
+-- gradus kb arguments: positional words and --dir/--older-than options;
+-- nil, message on anything else
+local function kb_args(args)
+  local pos, o, i = {}, {}, 3
+  while i <= #args do
+    local a = args[i]
+    if a == "--dir" or a == "--older-than" then
+      if not args[i + 1] then return nil, a .. " needs a value" end
+      o[a] = args[i + 1]
+      i = i + 2
+    elseif a:sub(1, 2) == "--" then
+      return nil, "unknown option " .. a
+    else
+      pos[#pos + 1] = a
+      i = i + 1
+    end
   end
-  return gradus.kb.default_dir()
+  return pos, o
 end
 
---- gradus kb list | show KEY | verify | prune [--dir DIR]
+--- gradus kb list [DIR] | show KEY [DIR] | verify [DIR] | prune [--older-than DAYS] [DIR]
 function M.kb(args)
   local sub = args[2]
-  local dir = kb_dir(args)
+  local pos, o = kb_args(args)
+  if not pos then eprint("gradus: kb: " .. o .. "\n" .. KB_USAGE) return 2 end
+  local want = sub == "show" and 2 or 1
+  if #pos > want or (sub == "show" and #pos < 1) then eprint(KB_USAGE) return 2 end
+  local dir = o["--dir"] or pos[want] or gradus.kb.default_dir()
+  if pos[want] and o["--dir"] then eprint("gradus: kb: the directory is given twice\n" .. KB_USAGE) return 2 end
   if sub == "list" then
     local entries = gradus.kb.list(dir)
     print(("knowledge base %s: %d templates"):format(dir, #entries))
@@ -41,8 +62,7 @@ function M.kb(args)
     end
     return 0
   elseif sub == "show" then
-    local key = args[3]
-    if not key or key == "--dir" then eprint("usage: gradus kb show KEY [--dir DIR]") return 2 end
+    local key = pos[1]
     local t = gradus.kb.show(dir, key)
     if not t then eprint("gradus: no template " .. key .. " in " .. dir) return 1 end
     print(gradus.yaml.encode(t))
@@ -52,11 +72,21 @@ function M.kb(args)
     print(gradus.yaml.encode(r))
     return (r.corrupt or 0) == 0 and 0 or 1
   elseif sub == "prune" then
-    local r = gradus.kb.prune(dir)
+    local opts = {}
+    if o["--older-than"] then
+      local days = tonumber(o["--older-than"])
+      if not days or days < 0 then
+        eprint("gradus: kb prune: --older-than needs a number of days >= 0, got '" .. o["--older-than"] .. "'")
+        return 2
+      end
+      -- created at or before (now - DAYS): the C cutoff is strict, in whole seconds
+      opts.older_than = os.time() - math.floor(days * 86400) + 1
+    end
+    local r = gradus.kb.prune(dir, opts)
     print(gradus.yaml.encode(r))
     return 0
   end
-  eprint("usage: gradus kb list|show KEY|verify|prune [--dir DIR]")
+  eprint(KB_USAGE)
   return 2
 end
 

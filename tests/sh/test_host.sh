@@ -70,3 +70,14 @@ printf 'name: bad\nlasers:\n  - name: a\n    field: {lo: [10, 0], hi: [0, 5]}\n'
 out=$($G run recipes/lattice.lua -D cells=1,1,1 -D kb=off -D machine="$d/bad.yaml" -o "$d/bad.cli" -q 2>&1); rc=$?
 expect "inverted laser field named" "bad.yaml.*lasers\[1\]\.field.*lo must be below hi" "$out"
 [ $rc != 0 ] && [ ! -e "$d/bad.cli" ] && pass "bad profile: exit non-zero, no CLI" || fail "bad profile" "rc=$rc"
+# gradus kb: the directory positional or as --dir; show, verify, prune; bad arguments
+$G run recipes/lattice.lua -D cells=1,1,1 -D kb="$d/kbc" -D layers=1:3 -o "$d/kbc.cli" -q >/dev/null 2>&1
+out=$($G kb list "$d/kbc" 2>&1); expect "kb list DIR" "knowledge base $d/kbc: 1 templates" "$out"
+out=$($G kb list --dir "$d/kbc" 2>&1); expect "kb list --dir DIR" "knowledge base $d/kbc: 1 templates" "$out"
+key=$($G kb list "$d/kbc" | awk 'NR==2{print $1}')
+out=$($G kb show "$key" "$d/kbc" 2>&1); expect "kb show KEY DIR" "^signature: .*surface: primitive" "$out"
+out=$($G kb verify "$d/kbc" 2>&1); rc=$?; expect "kb verify" "^ok: 1" "$out"; [ $rc = 0 ] && pass "kb verify exit 0" || fail "kb verify exit" "rc=$rc"
+out=$($G kb prune --older-than 1 "$d/kbc" 2>&1); expect "kb prune keeps a new template" "^removed: 0" "$out"
+out=$($G kb prune --older-than 0 "$d/kbc" 2>&1); expect "kb prune --older-than 0 removes it" "^removed: 1" "$out"
+out=$($G kb list --frob 2>&1); rc=$?; expect "kb unknown option" "unknown option --frob" "$out"; [ $rc = 2 ] && pass "kb bad option exit 2" || fail "kb bad option exit" "rc=$rc"
+out=$($G kb prune --older-than soon "$d/kbc" 2>&1); rc=$?; expect "kb prune bad days" "--older-than needs a number of days" "$out"; [ $rc = 2 ] && pass "kb bad days exit 2" || fail "kb bad days exit" "rc=$rc"
