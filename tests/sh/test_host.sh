@@ -81,3 +81,15 @@ out=$($G kb prune --older-than 1 "$d/kbc" 2>&1); expect "kb prune keeps a new te
 out=$($G kb prune --older-than 0 "$d/kbc" 2>&1); expect "kb prune --older-than 0 removes it" "^removed: 1" "$out"
 out=$($G kb list --frob 2>&1); rc=$?; expect "kb unknown option" "unknown option --frob" "$out"; [ $rc = 2 ] && pass "kb bad option exit 2" || fail "kb bad option exit" "rc=$rc"
 out=$($G kb prune --older-than soon "$d/kbc" 2>&1); rc=$?; expect "kb prune bad days" "--older-than needs a number of days" "$out"; [ $rc = 2 ] && pass "kb bad days exit 2" || fail "kb bad days exit" "rc=$rc"
+# gradus cli info: a binary CLI written by a run, then the same file truncated, and a missing file
+$G run recipes/lattice.lua -D cells=1,1,1 -D kb=off -D layers=2:4 -D format=binary -o "$d/info.cli" --stats "$d/info.yaml" -q >/dev/null 2>&1
+out=$($G cli info "$d/info.cli" 2>&1); rc=$?
+expect "cli info layers" "^layers: 3$" "$out"; expect "cli info format" "^format: binary$" "$out"
+expect "cli info z range" "^bounds: \[.*, 0.08, .*, 0.16\]$" "$out"; [ $rc = 0 ] && pass "cli info exit 0" || fail "cli info exit" "rc=$rc"
+hatches=$(awk '/^vectors:/{v=1} v&&/^  hatch:/{h=1} h&&/count:/{print $2; exit}' "$d/info.yaml")
+expect "cli info hatch count = the run's stats ($hatches)" "vectors: $hatches$" "$out"
+size=$(stat -c %s "$d/info.cli"); head -c $((size - 7)) "$d/info.cli" > "$d/cut.cli"
+out=$($G cli info "$d/cut.cli" 2>&1); rc=$?
+expect "cli info truncated names the byte" "$d/cut.cli: byte [0-9]+: .*(truncated|past the end)" "$out"; [ $rc != 0 ] && pass "truncated exit non-zero" || fail "truncated exit" "rc=$rc"
+out=$($G cli info "$d/none.cli" 2>&1); rc=$?
+expect "cli info missing file" "cannot read $d/none.cli" "$out"; [ $rc != 0 ] && pass "missing exit non-zero" || fail "missing exit" "rc=$rc"
