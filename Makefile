@@ -19,6 +19,7 @@ HDRS      := $(wildcard engine/*.h)
 CORE_OBJ  := $(CORE_SRC:engine/%.c=build/obj/%.o)
 BIND_OBJ  := $(BIND_SRC:engine/%.c=build/obj/%.o)
 SAN_OBJ   := $(CORE_SRC:engine/%.c=build/asan/obj/%.o)
+SAN_BIND  := $(BIND_SRC:engine/%.c=build/asan/obj/%.o) build/asan/obj/main.o
 CTESTS    := $(patsubst tests/c/%.c,%,$(wildcard tests/c/test_*.c))
 
 .PHONY: all deps check-deps test test-run demo demo-run bench clean ctests
@@ -53,7 +54,11 @@ build/tests/%: tests/c/%.c tests/c/check.h $(CORE_OBJ) | build/tests
 build/asan/tests/%: tests/c/%.c tests/c/check.h $(SAN_OBJ) | build/asan/tests
 	$(CC) $(ALL_CFLAGS) $(SAN) -o $@ $< $(SAN_OBJ) $(LIBS)
 
-ctests: $(CTESTS:%=build/tests/%) $(CTESTS:%=build/asan/tests/%)
+# the host itself under the sanitizers, for the pipeline test (tests/sh/test_sanitized.sh)
+build/gradus-asan: $(SAN_OBJ) $(SAN_BIND)
+	$(CC) $(SAN) -o $@ $^ $(LIBS) -Wl,-E
+
+ctests: $(CTESTS:%=build/tests/%) $(CTESTS:%=build/asan/tests/%) build/gradus-asan
 
 test: deps
 	@$(MAKE) --no-print-directory test-run

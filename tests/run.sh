@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Runs every test: C tests (plain and under ASan+UBSan), Lua tests through the
-# gradus host, and shell tests of the command line. Each test prints
+# gradus host, and shell tests of the command line (one of them runs whole
+# jobs with the host built under ASan+UBSan, build/gradus-asan). Each test prints
 # "PASS name" or "FAIL name: why"; a test program that crashes or exits
 # non-zero without a FAIL line counts as one failure. Last line:
 # "N passed, M failed".
