@@ -1,5 +1,5 @@
 /* cli.c: CLI 2.0 writer and reader, see cli.h. */
-#define _GNU_SOURCE /* O_DIRECT */
+#define _GNU_SOURCE /* O_DIRECT, memmem */
 #include "cli.h"
 #include <errno.h>
 #include <fcntl.h>
@@ -392,9 +392,7 @@ int gr_cli_read(const char *path, gr_cli_header *h, gr_cli_layer_fn fn, void *ud
   const char *t = map;
   *h = gr_cli_header_defaults();
   h->layers = -1;
-  const char *he = NULL;
-  for (size_t i = 0; i + 13 <= len; i++)
-    if (!memcmp(t + i, "$$HEADEREND", 11)) { he = t + i; break; }
+  const char *he = len >= 13 ? memmem(t, len - 2, "$$HEADEREND", 11) : NULL;
   int rc = GR_OK;
   if (len < 14 || memcmp(t, "$$HEADERSTART", 13) || !he) {
     rc = gr_fail(e, GR_EPARSE, "%s:1: not a CLI file (no $$HEADERSTART ... $$HEADEREND)", path);
@@ -423,9 +421,9 @@ int gr_cli_read(const char *path, gr_cli_header *h, gr_cli_layer_fn fn, void *ud
   if (binary) {
     rc = read_binary(path, (const unsigned char *)t, len, pos, h, fn, ud, e);
   } else {
-    static const char gs[] = "$$GEOMETRYSTART";
-    while (pos + sizeof gs - 1 <= len && memcmp(t + pos, gs, sizeof gs - 1)) pos++;
-    if (pos + sizeof gs - 1 > len) { rc = gr_fail(e, GR_EPARSE, "%s: no $$GEOMETRYSTART", path); goto done; }
+    const char *g = memmem(t + pos, len - pos, "$$GEOMETRYSTART", 15);
+    if (!g) { rc = gr_fail(e, GR_EPARSE, "%s: no $$GEOMETRYSTART", path); goto done; }
+    pos = (size_t)(g - t);
     while (pos < len && t[pos] != '\n') pos++;
     rc = read_ascii(path, t, len, pos + 1, h, fn, ud, e);
   }

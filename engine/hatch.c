@@ -818,9 +818,10 @@ static int emit_thin(const thin_line *t, const gr_hatch_opts *o, gr_layer *cl, g
   return GR_OK;
 }
 
-/* Thin-wall scans of the nested section sec into cl (GR_OPEN, GR_CONTOUR,
- * dir GR_DIR_THIN); every sliver scanned counts in thin_walls. A sliver that
- * is a whole component (no core) is always scanned, its wall limits relaxed. */
+static int in_box(const double box[4], double x, double y) {
+  return x >= box[0] && y >= box[1] && x <= box[2] && y <= box[3];
+}
+
 /* Is every point of the section within b (+ tol) of the core {depth >= b},
  * whose boundary is `core` (the offset by b)? The melt of the contour at b
  * is the core grown by b, which lies inside the section and touches only the
@@ -844,7 +845,7 @@ static int all_covered(const gr_rings *sec, const gr_rings *core, double b, doub
       int m = (int)ceil(len / tol);
       for (int k = 0; k < m; k++) {
         double t = (double)k / m, x = p[2 * a] + t * (q[0] - p[2 * a]), y = p[2 * a + 1] + t * (q[1] - p[2 * a + 1]);
-        if (x < box[0] || y < box[1] || x > box[2] || y > box[3]) continue;
+        if (!in_box(box, x, y)) continue;
         if (pd && fabs(gr_polydist_at(pd, x, y, NULL)) <= b + 0.5 * tol) continue;
         ok = 0; /* an uncovered boundary sample: where the slivers are */
         fail[0] = fmin(fail[0], x); fail[1] = fmin(fail[1], y);
@@ -856,6 +857,9 @@ static int all_covered(const gr_rings *sec, const gr_rings *core, double b, doub
   return ok;
 }
 
+/* Thin-wall scans of the nested section sec into cl (GR_OPEN, GR_CONTOUR,
+ * dir GR_DIR_THIN); every sliver scanned counts in thin_walls. A sliver that
+ * is a whole component (no core) is always scanned, its wall limits relaxed. */
 static int thin_walls(const gr_rings *sec, const gr_rings *core, const gr_hatch_opts *o, double b, gr_layer *cl,
                       gr_hatch_report *rep, gr_err *e) {
   thin_grid g;
@@ -899,7 +903,7 @@ static int thin_walls(const gr_rings *sec, const gr_rings *core, const gr_hatch_
   size_t nsl = 0; /* sliver nodes: each is flooded once */
   for (size_t k = 0; k < nn; k++) {
     double x = g.x0 + (double)(k % (size_t)g.nx) * h, y = g.y0 + (double)(k / (size_t)g.nx) * h;
-    if (g.D[k] < 0 && g.cov[k] * h * h > b * b && x >= inner[0] && y >= inner[1] && x <= inner[2] && y <= inner[3]) {
+    if (g.D[k] < 0 && g.cov[k] * h * h > b * b && in_box(inner, x, y)) {
       g.mark[k] = 1;
       nsl++;
     }
@@ -929,12 +933,12 @@ static int thin_walls(const gr_rings *sec, const gr_rings *core, const gr_hatch_
           } else if (g.D[q] < 0) attached = 1;
         }
     }
-    int in_box = 0;
-    for (size_t m = 0; m < nc && !in_box; m++) {
+    int reach = 0;
+    for (size_t m = 0; m < nc && !reach; m++) {
       double x = g.x0 + (double)(comp[m] % g.nx) * h, y = g.y0 + (double)(comp[m] / g.nx) * h;
-      in_box = x >= o->thin_box[0] && y >= o->thin_box[1] && x <= o->thin_box[2] && y <= o->thin_box[3];
+      reach = in_box(o->thin_box, x, y);
     }
-    if (!in_box) continue; /* a sliver of the cut, not a wall */
+    if (!reach) continue; /* a sliver of the cut, not a wall */
     double dmax = 0;
     for (size_t m = 0; m < nc; m++) dmax = fmax(dmax, -g.D[comp[m]]);
     /* a whole thin component is always scanned: limits relaxed to its size */

@@ -27,7 +27,6 @@
 #include "expr.h"
 #include "hatch.h"
 #include "kb.h"
-#include "verify.h"
 #include "slice.h"
 #include "verify.h"
 #include "version.h"
@@ -608,11 +607,15 @@ static int clip_seg(double px, double py, double qx, double qy, const double lo[
  * may or may not be repeated) to the box and append the pieces to `out`: a
  * closed polyline wholly inside stays GR_CLOSED (first point repeated), the
  * rest become GR_OPEN pieces that start and end on the box border. */
+/* CLI direction of an open piece cut from a block of direction dir:
+ * thin-wall lines keep their tag, everything else becomes "open" (2). */
+static int open_dir(int dir) { return dir == GR_DIR_THIN ? GR_DIR_THIN : 2; }
+
 static int clip_poly(const double *p, size_t n, int closed, int kind, int dir,
                      const double lo[2], const double hi[2], gr_layer *out,
                      double **buf, size_t *cap) {
   if (closed && n > 1 && p[0] == p[2 * (n - 1)] && p[1] == p[2 * (n - 1) + 1]) n--;
-  int odir = dir == GR_DIR_THIN ? dir : 2; /* open pieces; thin-wall lines stay tagged */
+  int odir = open_dir(dir);
   if (n < 2) return GR_OK;
   if (gr_grow(buf, cap, n + 2, 2 * sizeof(double))) return GR_EMEM;
   double *bf = *buf;
@@ -1386,7 +1389,7 @@ static int join_contours(scratch *s, size_t b0, size_t b1, double tol, gr_layer 
         if (gr_layer_add(out, GR_CLOSED, bk->kind, slot_laser[bk->laser], a > 0 ? 1 : 0, s->pts, m))
           return gr_fail(e, GR_EMEM, "out of memory");
       } else if (m >= 2) {
-        if (gr_layer_add(out, GR_OPEN, bk->kind, slot_laser[bk->laser], bk->dir == GR_DIR_THIN ? bk->dir : 2, s->pts, m))
+        if (gr_layer_add(out, GR_OPEN, bk->kind, slot_laser[bk->laser], open_dir(bk->dir), s->pts, m))
           return gr_fail(e, GR_EMEM, "out of memory");
       }
     }
@@ -1399,14 +1402,15 @@ static double est_time(const gr_machine *m, int l, double lc, double lh) {
   return lc / m->speed[l][GR_CONTOUR] + lh / m->speed[l][GR_HATCH];
 }
 
-/* Assign lasers to the voxel slots of a layer: fixed ones as given; the
- * others by longest-processing-time-first onto the laser that would finish
- * first among those that reach the voxel. */
+/* Can laser l scan the whole voxel with min corner o? */
 static int laser_reaches(const gr_machine *m, int l, const double o[3], double cell) {
   return !(o[0] < m->lo[l][0] - EPS || o[1] < m->lo[l][1] - EPS || o[0] + cell > m->hi[l][0] + EPS ||
            o[1] + cell > m->hi[l][1] + EPS);
 }
 
+/* Assign lasers to the voxel slots of a layer: fixed ones as given; the
+ * others by longest-processing-time-first onto the laser that would finish
+ * first among those that reach the voxel. */
 static int assign_lasers(gr_job *j, scratch *s, const int *vox, int nslot,
                          const double *lc, const double *lh, gr_err *e) {
   const gr_machine *m = &j->m;
@@ -1935,6 +1939,41 @@ static int table_item(gr_job *j, int item, void *arg_, gr_err *e) {
 }
 
 /* Phase 3, per class: drop the field, store the template. */
+/* A built template's quality (worst verified layer; NaN when the job does
+ * not verify) and qualification: the SPEC targets when verified, then the
+ * recipe's rule; counted in the stats. */
+static void qualify_template(gr_job *j, const build_arg *a, const vclass *cl) {
+  tmpl *t = cl->t;
+  long thin = 0;
+  char why[200] = "";
+  for (int q = 0; q < t->nl; q++) thin += t->l[q].paths->thin_walls;
+  t->quality[0] = t->quality[1] = t->quality[2] = t->quality[3] = NAN;
+  if (j->o.verify) {
+    t->quality[0] = t->quality[1] = t->quality[2] = t->quality[3] = 0;
+    for (int q = 0; q < t->nl; q++) {
+      for (int k = 0; k < 3; k++)
+        if (!isnan(t->l[q].q[k])) t->quality[k] = fmax(t->quality[k], t->l[q].q[k]);
+      t->quality[3] += !isnan(t->l[q].q[0]);
+    }
+    j->st.verified++;
+    if (t->quality[0] > j->o.max_pore)
+      snprintf(why, sizeof why, "pore %.3g %% > %.3g %%", 100 * t->quality[0], 100 * j->o.max_pore);
+    else if (t->quality[1] > j->o.max_overmelt)
+      snprintf(why, sizeof why, "overmelt %.3g %% > %.3g %%", 100 * t->quality[1], 100 * j->o.max_overmelt);
+    else if (t->quality[2] > j->o.max_dev)
+      snprintf(why, sizeof why, "contour deviation %.3g um > %.3g um", 1e3 * t->quality[2], 1e3 * j->o.max_dev);
+  }
+  t->qualified = !why[0];
+  if (t->qualified && a->qualify && !a->qualify(a->qualify_ud, cl->key, t->quality, thin, why, sizeof why)) {
+    t->qualified = 0;
+    if (!why[0]) snprintf(why, sizeof why, "refused by the recipe's rule");
+  }
+  if (!t->qualified) {
+    j->st.unqualified++;
+    snprintf(j->st.unqualified_why, sizeof j->st.unqualified_why, "%.16s: %s", cl->key, why);
+  }
+}
+
 static int store_item(gr_job *j, int item, void *arg_, gr_err *e) {
   build_arg *a = arg_;
   int c = a->items[item];
@@ -1946,39 +1985,7 @@ static int store_item(gr_job *j, int item, void *arg_, gr_err *e) {
   pthread_mutex_lock(a->kbmu);
   j->st.built++;
   pthread_mutex_unlock(a->kbmu);
-  tmpl *t = cl->t;
-  long thin = 0;
-  t->quality[0] = t->quality[1] = t->quality[2] = t->quality[3] = NAN;
-  if (j->o.verify) {
-    t->quality[0] = t->quality[1] = t->quality[2] = t->quality[3] = 0;
-    for (int q = 0; q < t->nl; q++) {
-      for (int k = 0; k < 3; k++)
-        if (!isnan(t->l[q].q[k])) t->quality[k] = fmax(t->quality[k], t->l[q].q[k]);
-      t->quality[3] += !isnan(t->l[q].q[0]);
-    }
-    j->st.verified++;
-  }
-  for (int q = 0; q < t->nl; q++) thin += t->l[q].paths->thin_walls;
-  /* qualification: the SPEC targets when verified, then the recipe's rule */
-  char why[200] = "";
-  t->qualified = 1;
-  if (j->o.verify) {
-    if (t->quality[0] > j->o.max_pore)
-      snprintf(why, sizeof why, "pore %.3g %% > %.3g %%", 100 * t->quality[0], 100 * j->o.max_pore);
-    else if (t->quality[1] > j->o.max_overmelt)
-      snprintf(why, sizeof why, "overmelt %.3g %% > %.3g %%", 100 * t->quality[1], 100 * j->o.max_overmelt);
-    else if (t->quality[2] > j->o.max_dev)
-      snprintf(why, sizeof why, "contour deviation %.3g um > %.3g um", 1e3 * t->quality[2], 1e3 * j->o.max_dev);
-    t->qualified = !why[0];
-  }
-  if (t->qualified && a->qualify && !a->qualify(a->qualify_ud, cl->key, t->quality, thin, why, sizeof why)) {
-    t->qualified = 0;
-    if (!why[0]) snprintf(why, sizeof why, "refused by the recipe's rule");
-  }
-  if (!t->qualified) {
-    j->st.unqualified++;
-    snprintf(j->st.unqualified_why, sizeof j->st.unqualified_why, "%.16s: %s", cl->key, why);
-  }
+  qualify_template(j, a, cl);
   if (a->kb && !cl->trimmed && a->jb < 0) {
     gr_template *r = tmpl_to_record(j, cl, e);
     if (!r) return e->code ? e->code : GR_EMEM;

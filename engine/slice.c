@@ -535,7 +535,6 @@ static int check_window(const double lo[2], const double hi[2], double cell,
   return GR_OK;
 }
 
-/* Grid geometry of a window: nx x ny nodes spanning lo..hi. */
 /* The grid over the window: nodes at most `cell` apart. A width that is a
  * whole number of cells up to rounding (a window [o - m, o + L + m] far from
  * the origin, say) keeps exactly that number: one node more would shrink
@@ -696,18 +695,24 @@ static int pd_inside(const poly_dist *d, size_t ed, double t, double x, double y
   return turn > 0 ? (l1 && l2) : (l1 || l2);
 }
 
+/* Exact signed distance (negative inside) of (x, y) to the edges; q (may be
+ * NULL) receives the nearest boundary point. +INFINITY without edges. */
+static double pd_signed(const poly_dist *d, double x, double y, double q[2]) {
+  if (d->ne == 0) return INFINITY;
+  size_t ed = 0;
+  double t = 0, d2 = INFINITY;
+  for (double r = 2 * d->bs; !isfinite(d2); r *= 4) d2 = pd_nearest(d, x, y, r, &ed, &t);
+  const double *a = d->ab + 4 * ed;
+  if (q) { q[0] = a[0] + t * (a[2] - a[0]); q[1] = a[1] + t * (a[3] - a[1]); }
+  return pd_inside(d, ed, t, x, y) ? -sqrt(d2) : sqrt(d2);
+}
+
 /* Signed distance (negative inside) + b, exact. */
 static int pd_fn(void *ud, size_t n, const double *x, const double *y,
                  double *out, gr_err *e) {
   (void)e;
   const poly_dist *d = ud;
-  for (size_t k = 0; k < n; k++) {
-    size_t ed = 0;
-    double t = 0, d2 = INFINITY;
-    for (double r = 2 * d->bs; !isfinite(d2); r *= 4) d2 = pd_nearest(d, x[k], y[k], r, &ed, &t);
-    double dist = sqrt(d2);
-    out[k] = (pd_inside(d, ed, t, x[k], y[k]) ? -dist : dist) + d->b;
-  }
+  for (size_t k = 0; k < n; k++) out[k] = pd_signed(d, x[k], y[k], NULL) + d->b;
   return GR_OK;
 }
 
@@ -940,16 +945,7 @@ void gr_polydist_free(gr_polydist *p) {
   free(p);
 }
 
-double gr_polydist_at(const gr_polydist *p, double x, double y, double q[2]) {
-  const poly_dist *d = &p->d;
-  if (d->ne == 0) return INFINITY;
-  size_t ed = 0;
-  double t = 0, d2 = INFINITY;
-  for (double r = 2 * d->bs; !isfinite(d2); r *= 4) d2 = pd_nearest(d, x, y, r, &ed, &t);
-  const double *a = d->ab + 4 * ed;
-  if (q) { q[0] = a[0] + t * (a[2] - a[0]); q[1] = a[1] + t * (a[3] - a[1]); }
-  return pd_inside(d, ed, t, x, y) ? -sqrt(d2) : sqrt(d2);
-}
+double gr_polydist_at(const gr_polydist *p, double x, double y, double q[2]) { return pd_signed(&p->d, x, y, q); }
 
 int gr_polydist_grid(const gr_polydist *p, double x0, double y0, double h, int nx, int ny,
                      double rmax, double *v, gr_err *e) {

@@ -445,15 +445,30 @@ static size_t count_thin(const gr_layer *l, size_t *idx) {
   return n;
 }
 
-/* Hatch r at spacing d (b = d/2, defaults otherwise) into a new layer; the
- * thin-wall scans' block indices into ib (up to 8), their number into nthin. */
-static gr_layer *hatch_thin(const gr_rings *r, double d, gr_hatch_report *rep, size_t *nthin, size_t *ib) {
+/* Hatch r at spacing d (b = d/2, thin walls only within box if not NULL,
+ * defaults otherwise) into a new layer; the thin-wall scans' block indices
+ * into ib (up to 8), their number into nthin. */
+static gr_layer *hatch_thin_in(const gr_rings *r, double d, const double *box, gr_hatch_report *rep, size_t *nthin,
+                               size_t *ib) {
   gr_layer *l = gr_layer_new(0);
   gr_hatch_opts o = base(d, 0);
+  if (box) memcpy(o.thin_box, box, sizeof o.thin_box);
   gr_err e;
   CHECK(gr_hatch_layer(r, &o, l, rep, &e) == GR_OK, "%s", e.msg);
   *nthin = count_thin(l, ib);
   return l;
+}
+
+static gr_layer *hatch_thin(const gr_rings *r, double d, gr_hatch_report *rep, size_t *nthin, size_t *ib) {
+  return hatch_thin_in(r, d, NULL, rep, nthin, ib);
+}
+
+/* Two strips 1 mm long, 0.03 mm wide (< 2b at d = 0.05), at y = 0 and y = 0.5. */
+static gr_rings *two_walls(void) {
+  gr_rings *r = rect(0, 0, 1, 0.03);
+  double p[8] = {0, 0.5, 1, 0.5, 1, 0.53, 0, 0.53};
+  gr_rings_add(r, p, 4);
+  return r;
 }
 
 /* Verify l over r with track d, offset d/2, pixel d/20. */
@@ -555,9 +570,7 @@ TEST(thin_tail_on_thick_body) {
  * thinner than d/8 everywhere (a whole component) still gets a scan. */
 TEST(thin_walls_apart_and_tiny) {
   double d = 0.05;
-  gr_rings *r = rect(0, 0, 1, 0.03);
-  double p[8] = {0, 0.5, 1, 0.5, 1, 0.53, 0, 0.53};
-  gr_rings_add(r, p, 4);
+  gr_rings *r = two_walls();
   gr_hatch_report rep;
   size_t nt;
   gr_layer *l = hatch_thin(r, d, &rep, &nt, NULL);
@@ -580,16 +593,11 @@ TEST(thin_walls_apart_and_tiny) {
  * a thick square with a sliver outside the box gets no thin scan at all. */
 TEST(thin_walls_only_where_they_reach_the_box) {
   double d = 0.05;
-  gr_rings *r = rect(0, 0, 1, 0.03);
-  double p[8] = {0, 0.5, 1, 0.5, 1, 0.53, 0, 0.53};
-  gr_rings_add(r, p, 4);
-  gr_layer *l = gr_layer_new(0);
-  gr_hatch_opts o = base(d, 0);
-  o.thin_box[0] = 0.2; o.thin_box[1] = 0.4; o.thin_box[2] = 0.8; o.thin_box[3] = 1.0;
+  gr_rings *r = two_walls();
   gr_hatch_report rep;
-  gr_err e;
-  CHECK(gr_hatch_layer(r, &o, l, &rep, &e) == GR_OK, "%s", e.msg);
-  size_t nt = count_thin(l, NULL);
+  size_t nt;
+  const double upper[4] = {0.2, 0.4, 0.8, 1.0};
+  gr_layer *l = hatch_thin_in(r, d, upper, &rep, &nt, NULL);
   CHECK(nt == 1 && rep.thin_walls == 1, "%zu thin scans, %d thin walls", nt, rep.thin_walls);
   for (size_t b = 0; b < l->nb; b++)
     if (l->b[b].dir == GR_DIR_THIN)
@@ -600,13 +608,11 @@ TEST(thin_walls_only_where_they_reach_the_box) {
   r = rect(0, 0, 1, 1);
   double s[8] = {2, 0, 3, 0, 3, 0.02, 2, 0.02}; /* a 20 um sliver beside it */
   gr_rings_add(r, s, 4);
-  l = gr_layer_new(0);
-  o.thin_box[0] = -0.1; o.thin_box[1] = -0.1; o.thin_box[2] = 1.1; o.thin_box[3] = 1.1;
-  CHECK(gr_hatch_layer(r, &o, l, &rep, &e) == GR_OK, "%s", e.msg);
-  CHECK(count_thin(l, NULL) == 0 && rep.thin_walls == 0 && rep.contours == 1, "sliver outside the box ignored: %d",
-        rep.thin_walls);
-  o.thin_box[2] = 2.5; /* now it reaches the box */
-  CHECK(gr_hatch_layer(r, &o, l, &rep, &e) == GR_OK, "%s", e.msg);
+  const double square[4] = {-0.1, -0.1, 1.1, 1.1}, wider[4] = {-0.1, -0.1, 2.5, 1.1};
+  l = hatch_thin_in(r, d, square, &rep, &nt, NULL);
+  CHECK(nt == 0 && rep.thin_walls == 0 && rep.contours == 1, "sliver outside the box ignored: %d", rep.thin_walls);
+  gr_layer_free(l);
+  l = hatch_thin_in(r, d, wider, &rep, &nt, NULL); /* now it reaches the box */
   CHECK(rep.thin_walls == 1, "sliver reaching the box scanned: %d", rep.thin_walls);
   gr_layer_free(l);
   gr_rings_free(r);
