@@ -65,6 +65,9 @@ int gr_hatch_check(const gr_hatch_opts *o, gr_err *e) {
     return gr_fail(e, GR_EARG, "hatch laser must be >= 0, got %d", o->laser);
   if (!isnan(o->cell) && (!(o->cell > 0) || !isfinite(o->cell)))
     return gr_fail(e, GR_EARG, "hatch cell must be > 0, got %g", o->cell);
+  if (!(o->thin_box[0] <= o->thin_box[2]) || !(o->thin_box[1] <= o->thin_box[3]))
+    return gr_fail(e, GR_EARG, "hatch thin_box must be {x0, y0, x1, y1} with x0 <= x1 and y0 <= y1, got {%g, %g, %g, %g}",
+                   o->thin_box[0], o->thin_box[1], o->thin_box[2], o->thin_box[3]);
   return GR_OK;
 }
 

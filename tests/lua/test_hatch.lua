@@ -93,6 +93,8 @@ t.test("min length and thin walls are counted", function()
   local _, r3 = hatch.layer(sec, { spacing = 0.1, thin_box = { 0, 0, 2.1, 2.1 } })
   t.eq(r3.thin_walls, 0, "strip outside thin_box ignored") ; t.eq(r3.contours, 1, "square still contoured")
   t.raises(function() hatch.layer(sec, { spacing = 0.1, thin_box = { 0, 0 } }) end, "thin_box")
+  t.raises(function() hatch.layer(sec, { spacing = 0.1, thin_box = { 0, 0, 0 / 0, 1 } }) end, "thin_box must be")
+  t.raises(function() hatch.layer(sec, { spacing = 0.1, thin_box = { 2, 0, 1, 1 } }) end, "x0 <= x1")
 end)
 
 t.test("verify", function()
