@@ -2211,18 +2211,23 @@ static int run_layers(gr_job *j, int ga, int gb, const gr_job_run_opts *r, long 
     free(p.slot); free(p.ready); free(p.acct);
     return gr_fail(e, GR_EMEM, "out of memory");
   }
+  int no_slots = 0;
   for (int i = 0; i < p.S; i++)
-    if (!(p.slot[i] = gr_layer_new(0))) p.failed = 1;
+    if (!(p.slot[i] = gr_layer_new(0))) no_slots = 1;
   pthread_mutex_init(&p.mu, NULL);
   pthread_cond_init(&p.cv, NULL);
   int nt = j->o.threads > 64 ? 64 : j->o.threads;
   pthread_t th[64];
   int started = 0;
-  if (!p.failed)
+  if (!no_slots)
     for (int t = 0; t < nt; t++)
       if (pthread_create(&th[started], NULL, lpipe_worker, &p) == 0) started++;
+  /* A worker may already have failed (with its own error, taken below)
+   * before this point: only a job that could start no worker at all is
+   * reported as such. Fewer threads than asked is fine. */
   int rc = GR_OK;
-  if (p.failed || started == 0) rc = gr_fail(e, GR_EMEM, "cannot start worker threads");
+  if (no_slots) rc = gr_fail(e, GR_EMEM, "out of memory for the layer pipeline");
+  else if (started == 0) rc = gr_fail(e, GR_EMEM, "cannot start any worker thread (the system refused all %d)", nt);
   for (int g = ga; g <= gb && rc == GR_OK; g++) {
     pthread_mutex_lock(&p.mu);
     while (!p.ready[g % p.S] && !p.failed) pthread_cond_wait(&p.cv, &p.mu);

@@ -324,6 +324,14 @@ t.test("bad input", function()
   local f1 = job { cells = { 1, 1, 1 } }
   f1:machine(far)
   t.raises(function() f1:run { output = tmp .. "/far.cli", kb = false } end, "laser 1 does not reach voxel %[0, 2%]")
+  -- a worker that fails before the main thread looks must give its own error, not
+  -- "cannot start worker threads" (a race seen under load); run it often enough to catch it
+  local wrong = 0
+  for _ = 1, 40 do
+    local ok, err = pcall(function() f1:run { output = tmp .. "/far.cli", kb = false } end)
+    if ok or not tostring(err):find("laser 1 does not reach voxel", 1, true) then wrong = wrong + 1 end
+  end
+  t.eq(wrong, 0, "the laser error every time, never a thread error")
   t.ok(not io.open(tmp .. "/far.cli"), "no output file")
   local two = lasers.normalize({ name = "two", lasers = { { name = "a", field = { lo = { 0, 0 }, hi = { 2, 4 } } },
     { name = "b", field = { lo = { 2, 0 }, hi = { 4, 4 } } } } }, "test")
