@@ -39,6 +39,19 @@ static int pattern_of(lua_State *L, const char *s) {
   return luaL_error(L, "bad option 'pattern' (parallel, zigzag or island, got '%s')", s);
 }
 
+/* A number option that must be finite and inside [lo, hi] (NaN and
+ * infinities are refused by name; lua_pushfstring has no %g, hence the
+ * buffer). */
+static double opt_in(lua_State *L, int idx, const char *key, double def, double lo, double hi) {
+  double v = gr_opt_number(L, idx, key, def);
+  if (!(v >= lo && v <= hi)) {
+    char msg[160];
+    snprintf(msg, sizeof msg, "bad option '%s' (a finite number in [%g, %g] expected, got %g)", key, lo, hi, v);
+    luaL_error(L, "%s", msg);
+  }
+  return v;
+}
+
 /* gradus.place.job{...} */
 static int l_job(lua_State *L) {
   luaL_checktype(L, 1, LUA_TTABLE);
@@ -46,41 +59,54 @@ static int l_job(lua_State *L) {
   b->j = NULL;
   luaL_setmetatable(L, JOB_MT);
   gr_job_opts o = gr_job_defaults();
-  o.cell = gr_opt_number(L, 1, "cell", o.cell);
+  o.cell = opt_in(L, 1, "cell", o.cell, 1e-3, 1e3);
   gr_opt_vec(L, 1, "origin", 3, o.origin);
   double n[3] = {1, 1, 1};
   gr_opt_vec(L, 1, "cells", 3, n);
   for (int a = 0; a < 3; a++) {
+    if (!(isfinite(o.origin[a]) && fabs(o.origin[a]) <= 1e6))
+      return luaL_error(L, "bad option 'origin' (finite numbers in [-1e6, 1e6] mm expected, got %f)", o.origin[a]);
     if (!(n[a] >= 1 && n[a] <= 100000 && n[a] == (int)n[a]))
-      return luaL_error(L, "bad option 'cells' (whole numbers >= 1 expected, got %g)", n[a]);
+      return luaL_error(L, "bad option 'cells' (whole numbers in [1, 100000] expected, got %f)", n[a]);
     o.n[a] = (int)n[a];
   }
-  o.layer = gr_opt_number(L, 1, "layer", o.layer);
-  o.hatch = gr_opt_number(L, 1, "hatch", o.hatch);
-  o.beam_offset = gr_opt_number(L, 1, "beam_offset", o.beam_offset);
-  o.track = gr_opt_number(L, 1, "track", o.track);
+  o.layer = opt_in(L, 1, "layer", o.layer, 1e-4, 1e3);
+  o.hatch = opt_in(L, 1, "hatch", o.hatch, 1e-4, 1e3);
+  /* the in-plane grid has cell/slice_cell nodes a side, slice_cell <= hatch/2 */
+  if (o.cell / o.hatch > 4096) {
+    char msg[160];
+    snprintf(msg, sizeof msg, "bad option 'hatch' (at least cell/4096 = %g mm for a cell of %g mm, got %g)",
+             o.cell / 4096, o.cell, o.hatch);
+    return luaL_error(L, "%s", msg);
+  }
+  o.beam_offset = opt_in(L, 1, "beam_offset", o.beam_offset, -1, o.cell);
+  o.track = opt_in(L, 1, "track", o.track, -1, 1e3);
   o.contours = gr_opt_integer(L, 1, "contours", o.contours);
   o.contour_first = gr_opt_boolean(L, 1, "contour_first", o.contour_first);
-  o.angle = gr_opt_number(L, 1, "angle", o.angle);
-  o.rotation = gr_opt_number(L, 1, "rotation", o.rotation);
+  o.angle = opt_in(L, 1, "angle", o.angle, -1e4, 1e4);
+  o.rotation = opt_in(L, 1, "rotation", o.rotation, -1e4, 1e4);
   o.pattern = pattern_of(L, gr_opt_string(L, 1, "pattern", "parallel"));
   o.alternate = gr_opt_boolean(L, 1, "alternate", 1);
-  o.slice_cell = gr_opt_number(L, 1, "slice_cell", o.slice_cell);
+  o.slice_cell = opt_in(L, 1, "slice_cell", o.slice_cell, -1, o.hatch);
+  if (o.slice_cell > 0 && o.cell / o.slice_cell > 8192)
+    return luaL_error(L, "bad option 'slice_cell' (at least cell/8192 expected)");
   o.res = gr_opt_integer(L, 1, "res", o.res);
   const char *mode = gr_opt_string(L, 1, "mode", "exact");
   if (strcmp(mode, "exact") && strcmp(mode, "mesh"))
     return luaL_error(L, "bad option 'mode' (exact or mesh, got '%s')", mode);
   o.exact = !strcmp(mode, "exact");
-  o.quant = gr_opt_number(L, 1, "quant", o.quant);
-  o.min_length = gr_opt_number(L, 1, "min_length", o.min_length);
+  o.quant = opt_in(L, 1, "quant", o.quant, 1e-9, 1);
+  o.min_length = opt_in(L, 1, "min_length", o.min_length, 0, 1e3);
   o.threads = gr_opt_integer(L, 1, "threads", o.threads);
+  if (o.threads < 1 || o.threads > 64)
+    return luaL_error(L, "bad option 'threads' (1 to 64 expected, got %d)", o.threads);
   o.nlasers = gr_opt_integer(L, 1, "lasers", 1);
   o.share = gr_opt_boolean(L, 1, "share", o.share);
   o.faces = gr_opt_boolean(L, 1, "faces", o.faces);
   o.verify = gr_opt_boolean(L, 1, "verify", o.verify);
-  o.max_pore = gr_opt_number(L, 1, "max_pore", o.max_pore);
-  o.max_overmelt = gr_opt_number(L, 1, "max_overmelt", o.max_overmelt);
-  o.max_dev = gr_opt_number(L, 1, "max_dev", o.max_dev);
+  o.max_pore = opt_in(L, 1, "max_pore", o.max_pore, 0, 1);
+  o.max_overmelt = opt_in(L, 1, "max_overmelt", o.max_overmelt, 0, 1e3);
+  o.max_dev = opt_in(L, 1, "max_dev", o.max_dev, 0, 1e3);
   gr_err e;
   gr_err_clear(&e);
   b->j = gr_job_new(&o, &e);
@@ -145,7 +171,7 @@ static int l_voxel(lua_State *L) {
 static int l_domain(lua_State *L) {
   gr_job *j = check_job(L, 1);
   gr_field *f = gr_to_field(L, 2);
-  double skin = gr_opt_number(L, 3, "skin", 0);
+  double skin = opt_in(L, 3, "skin", 0, 0, 1e3);
   gr_err e;
   gr_err_clear(&e);
   int rc = gr_job_set_domain(j, f, skin, &e);
@@ -237,7 +263,9 @@ static void progress(void *ud, const char *stage, long done, long total) {
   if (done < total && now - p->last < 0.25) return;
   p->last = now;
   double el = now - p->t0, rate = el > 0 ? done / el : 0;
-  fprintf(stderr, "\r%s: %ld/%ld (%.1f/s, %.0f s left)   %s", stage, done, total, rate,
+  /* the template stage counts template layers (every template has many) */
+  const char *label = strcmp(stage, "templates") == 0 ? "template layers" : stage;
+  fprintf(stderr, "\r%s: %ld/%ld (%.1f/s, %.0f s left)   %s", label, done, total, rate,
           rate > 0 ? (total - done) / rate : 0.0, done >= total ? "\n" : "");
   if (done >= total) p->t0 = now;
   fflush(stderr);
@@ -285,7 +313,10 @@ static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) 
   set_int(L, "built", st->built);
   set_int(L, "reused", st->reused);
   set_int(L, "corrupt_rebuilt", st->kb_corrupt);
-  set_num(L, "reuse_ratio", st->classes ? (double)st->voxels / st->classes : 0);
+  /* share of the unique templates taken from the knowledge base (0 when none
+   * was reused), and voxels per template (how much the job repeats itself) */
+  set_num(L, "reuse_ratio", st->classes ? (double)st->reused / st->classes : 0);
+  set_num(L, "voxels_per_template", st->classes ? (double)st->voxels / st->classes : 0);
   set_int(L, "verified", st->verified);
   set_int(L, "unqualified", st->unqualified);
   if (st->unqualified_why[0]) {
@@ -334,6 +365,13 @@ static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) 
   set_num(L, "total", st->seconds[3]);
   lua_setfield(L, -2, "seconds");
   set_num(L, "units", units);
+  /* the values the job used where the caller left a default ("auto") */
+  lua_newtable(L);
+  set_num(L, "beam_offset", o->beam_offset);
+  set_num(L, "slice_cell", o->slice_cell);
+  set_num(L, "track", o->track);
+  set_int(L, "threads", o->threads);
+  lua_setfield(L, -2, "effective");
   /* peak resident memory from /proc */
   FILE *f = fopen("/proc/self/status", "r");
   if (f) {

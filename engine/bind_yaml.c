@@ -5,6 +5,10 @@
  *   gradus.yaml.decode(text [, name]) -> value of the first document
  *   gradus.yaml.load(path)            -> value of the first document
  *   gradus.yaml.load_all(path)        -> { documents... }
+ *   gradus.yaml.load(path, {marks = true}) (decode: third argument)
+ *                                     -> value, marks: marks[mapping][key] =
+ *                                        "LINE:COL" of the key, so that a
+ *                                        checker can point at an unknown key
  * Scalars: plain null/~/empty -> nil (absent key), true/false/yes/no/on/off
  * -> boolean, integers and floats (.inf, .nan) -> numbers; quoted or tagged
  * !!str -> string. Anchors and aliases are supported; duplicate keys are an
@@ -26,6 +30,7 @@ typedef struct yparser {
   int have_parser, have_event;
   const char *name; /* for messages; kept alive on the Lua stack */
   int anchors;      /* stack index of the anchors table */
+  int marks;        /* stack index of the marks table, 0 = not wanted */
 } yparser;
 
 static int yp_gc(lua_State *L) {
@@ -81,6 +86,16 @@ static void set_anchor(lua_State *L, yparser *p, const unsigned char *anchor) {
   lua_setfield(L, p->anchors, (const char *)anchor);
 }
 
+/* marks[map][key] = "LINE:COL", the key on top of the stack. */
+static void mark_key(lua_State *L, yparser *p, int map, int line, int col) {
+  lua_pushvalue(L, map);
+  lua_rawget(L, p->marks);
+  lua_pushvalue(L, -2);
+  lua_pushfstring(L, "%d:%d", line, col);
+  lua_rawset(L, -3);
+  lua_pop(L, 1);
+}
+
 /* Parse the node starting at the current event; push its value. */
 static void parse_node(lua_State *L, yparser *p, int depth) {
   if (depth > MAX_DEPTH)
@@ -117,6 +132,11 @@ static void parse_node(lua_State *L, yparser *p, int depth) {
     int map = lua_gettop(L);
     lua_newtable(L); /* merge sources ("<<" keys), applied at the end */
     int merges = map + 1;
+    if (p->marks) { /* marks[map] = { key = "LINE:COL" } */
+      lua_pushvalue(L, map);
+      lua_newtable(L);
+      lua_rawset(L, p->marks);
+    }
     lua_Integer nmerge = 0;
     while (yp_next(L, p) != YAML_MAPPING_END_EVENT) {
       int line = (int)p->event.start_mark.line + 1, col = (int)p->event.start_mark.column + 1;
@@ -135,6 +155,7 @@ static void parse_node(lua_State *L, yparser *p, int depth) {
         luaL_error(L, "%s:%d:%d: duplicate key '%s'", p->name, line, col,
                    luaL_tolstring(L, -2, NULL));
       lua_pop(L, 1);
+      if (p->marks) mark_key(L, p, map, line, col);
       yp_next(L, p);
       parse_node(L, p, depth + 1); /* value */
       lua_rawset(L, map);
@@ -176,13 +197,17 @@ static void parse_node(lua_State *L, yparser *p, int depth) {
 }
 
 /* Decode text (stack index 1) named `name`; all = 1 returns every document. */
-static int decode(lua_State *L, const char *text, size_t len, const char *name, int all) {
+static int decode(lua_State *L, const char *text, size_t len, const char *name, int all, int marks) {
   yparser *p = lua_newuserdatauv(L, sizeof *p, 0);
   memset(p, 0, sizeof *p);
   luaL_setmetatable(L, YAML_MT);
   if (!yaml_parser_initialize(&p->parser)) return luaL_error(L, "%s: cannot start YAML parser", name);
   p->have_parser = 1;
   p->name = name;
+  if (marks) {
+    lua_newtable(L);
+    p->marks = lua_gettop(L);
+  }
   yaml_parser_set_input_string(&p->parser, (const unsigned char *)text, len);
   lua_newtable(L); /* documents */
   int docs = lua_gettop(L);
@@ -207,20 +232,34 @@ static int decode(lua_State *L, const char *text, size_t len, const char *name, 
   if (p->have_event) yaml_event_delete(&p->event);
   yaml_parser_delete(&p->parser);
   p->have_event = p->have_parser = 0;
-  if (all) return 1;
+  if (all) {
+    if (!p->marks) return 1;
+    lua_pushvalue(L, p->marks);
+    return 2;
+  }
   lua_rawgeti(L, docs, 1);
-  return 1;
+  if (!p->marks) return 1;
+  lua_pushvalue(L, p->marks);
+  return 2;
+}
+
+/* opts.marks at stack index idx (a table, or none) */
+static int want_marks(lua_State *L, int idx) {
+  if (lua_isnoneornil(L, idx)) return 0;
+  luaL_checktype(L, idx, LUA_TTABLE);
+  return gr_opt_boolean(L, idx, "marks", 0);
 }
 
 static int y_decode(lua_State *L) {
   size_t len;
   const char *text = luaL_checklstring(L, 1, &len);
   const char *name = luaL_optstring(L, 2, "<string>");
-  return decode(L, text, len, name, 0);
+  return decode(L, text, len, name, 0, want_marks(L, 3));
 }
 
 static int load_file(lua_State *L, int all) {
   const char *path = luaL_checkstring(L, 1);
+  int marks = want_marks(L, 2);
   FILE *f = fopen(path, "rb");
   if (!f) return luaL_error(L, "cannot read YAML file %s: %s", path, strerror(errno));
   luaL_Buffer b;
@@ -234,7 +273,7 @@ static int load_file(lua_State *L, int all) {
   luaL_pushresult(&b);
   size_t len;
   const char *text = lua_tolstring(L, -1, &len);
-  return decode(L, text, len, path, all);
+  return decode(L, text, len, path, all, marks);
 }
 
 static int y_load(lua_State *L) { return load_file(L, 0); }

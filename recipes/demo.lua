@@ -2,13 +2,10 @@
 -- whose wall thickens with height, two lasers balanced by scan time, a
 -- binary CLI with its manifest and stats, and pictures of two layers.
 local lattice = require "gradus.lattice"
-local p = lattice.params()
-p.cells = gradus.param("cells", "4,4,2")
+-- the lattice recipe's parameters with the demo's own defaults; the
 -- half-thickness grows from 0.06 mm at the bottom to 0.14 mm at the top (z in mm)
-p.thickness = gradus.param("thickness", "0.06 + 0.02*z")
-p.lasers = gradus.param("lasers", 2)
-p.format = gradus.param("format", "binary")
-p.pictures = gradus.param("pictures", "25,75")
+local p = lattice.params { cells = "4,4,2", thickness = "0.06 + 0.02*z", lasers = 2, format = "binary",
+  pictures = "25,75" }
 local out = gradus.output("out/demo.cli")
 local st = lattice.run(p, out)
 print(("demo: %s: %d layers, %d voxels in %d classes, %.2f m contours + %.2f m hatches, %d pictures, %.2f s")

@@ -3,13 +3,11 @@
 -- spacing. Used by recipes/sweep_p.lua; runs on its own too:
 --   gradus run recipes/graded_p.lua -D amp=0.08 -D hatch=0.05 --stats s.yaml
 local lattice = require "gradus.lattice"
-local p = lattice.params()
-local amp = gradus.param("amp", 0.1)
-if not (amp > 0) then error(("amp must be > 0 mm, got %g"):format(amp)) end
+-- pore, overmelt, contour deviation of the layers in `verify`
+local p = lattice.params { format = "binary", verify = "10,25,40" }
+local amp = gradus.param("amp", 0.1, { unit = "mm", min = 0.005, max = 1,
+  help = "amplitude of eq. (8): T = amp*(2*sin(pi*(w+1)/4)+1)" })
 p.thickness = ("%.17g*(2*sin(pi*(w+1)/4)+1)"):format(amp)
-p.cells = gradus.param("cells", "2,2,1")
-p.format = gradus.param("format", "binary")
-p.verify = gradus.param("verify", "10,25,40") -- pore, overmelt, contour deviation of these layers
 local st = lattice.run(p, gradus.output("out/graded_p.cli"))
 print(("amp %.3f mm, hatch %.3f mm: relative density %.3f, scan %.2f m, build %.1f s, pore %.3f%%, overmelt %.3f%%"):format(amp, p.hatch,
   st.relative_density, (st.vectors.contour.length + st.vectors.hatch.length) / 1000, st.build_time_s,

@@ -1,10 +1,11 @@
 -- The general recipe: a box of graded TPMS cells to a CLI file.
 --   gradus run recipes/lattice.lua -D cells=2,2,1 -o out.cli --stats out.yaml
--- Parameters (SPEC.md section 7): surface, cell, cells, origin, level, kind,
--- thickness, layer, hatch, beam_offset, angle, rotation, pattern, contours,
--- lasers, kb, format; and machine, assign, sequence, mode, res, layers,
--- pictures (comma-separated layer numbers to draw), split, threads; domain
--- (an STL file of the part, or an expression) and skin (mm).
+-- Parameters (doc/contract.md section 7; `gradus run recipes/lattice.lua
+-- --help` lists them with defaults, units and ranges): surface, cell, cells,
+-- origin, level, kind, thickness, layer, hatch, beam_offset, angle, rotation,
+-- pattern, contours, lasers, kb, format; and machine, assign, sequence, mode,
+-- res, layers, pictures, split, threads; domain (an STL file of the part, or
+-- an expression) and skin (mm).
 local lattice = require "gradus.lattice"
 local p = lattice.params()
 local out = gradus.output("out/lattice.cli")

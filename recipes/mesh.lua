@@ -4,19 +4,18 @@
 --   gradus run recipes/mesh.lua -D thickness='0.1*(2*sin(pi*(w+1)/4)+1)' -D kind=sheet -D mode=exact
 -- kind: sheet (both offset surfaces, the wall's boundary), outside (the +T
 -- offset surface alone), inside (the -T one). Formats by extension: .stl .ply .obj
-local surface = gradus.param("surface", "primitive")
-local cell = gradus.param("cell", 2.0)
-local cells = gradus.param("cells", { 1, 1, 1 })
-local level = gradus.param("level", 0.0)
-local res = gradus.param("res", 40)
-local thickness = gradus.param("thickness", "")
-local kind = gradus.param("kind", "sheet")
-local mode = gradus.param("mode", "exact")
-local out = gradus.param("out", gradus.output("out/mesh.stl"))
-if res < 2 then error(("res must be >= 2, got %d"):format(res)) end
+local surface = gradus.param("surface", "primitive", { help = "a TPMS name, or sphere" })
+local cell = gradus.param("cell", 2.0, { unit = "mm", min = 0.1, max = 100, help = "cell size L" })
+local cells = gradus.param("cells", { 1, 1, 1 }, { n = 3, integer = true, min = 1, max = 100, help = "cells along x, y, z" })
+local level = gradus.param("level", 0.0, { min = -20, max = 20, help = "iso-level of the TPMS" })
+local res = gradus.param("res", 40, { integer = true, min = 2, max = 400, help = "samples per cell edge" })
+local thickness = gradus.param("thickness", "", { unit = "mm", help = "half-thickness (number or expression); empty: the surface itself" })
+local kind = gradus.param("kind", "sheet", { choices = { "sheet", "outside", "inside" }, help = "which offset surface" })
+local mode = gradus.param("mode", "exact", { choices = { "exact", "mesh" }, help = "closest points" })
+local out = gradus.param("out", gradus.output("out/mesh.stl"), { help = "mesh file: .stl .ply .obj" })
+local R = gradus.param("radius", 3.0, { unit = "mm", min = 0.01, max = 1000, help = "radius of the sphere (surface=sphere)" })
 local m
 if surface == "sphere" then
-  local R = gradus.param("radius", 3.0)
   m = gradus.mc(string.format("sqrt(x*x+y*y+z*z)-%.17g", R),
     { lo = { -1.1 * R, -1.1 * R, -1.1 * R }, hi = { 1.1 * R, 1.1 * R, 1.1 * R }, res = res, refine = true })
 else

@@ -4,7 +4,7 @@
 -- template; the column's toolpaths are the templates stacked. Pictures of a
 -- layer in the lowest and in the highest cell show the grading.
 local lattice = require "gradus.lattice"
-local n = gradus.param("n", 4)
+local n = gradus.param("n", 4, { integer = true, min = 1, max = 100, help = "cells in the column" })
 local p = lattice.params()
 p.cells = ("1,1,%d"):format(n)
 -- T rises linearly with the global height z: 0.05 mm at the bottom to 0.15 mm at the top

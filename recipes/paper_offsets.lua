@@ -4,9 +4,9 @@
 --   Fig. 15: the graded P cell (eq. 8) - standard, inside and outside offset surfaces as meshes.
 -- Each offset is the zero set of the variable distance field built on the
 -- marching-cubes mesh H of the base surface, sliced at z = 0.
-local dir = gradus.param("dir", "out/paper_offsets")
-local res = gradus.param("res", 60)
-local mode = gradus.param("mode", "exact")
+local dir = gradus.param("dir", "out/paper_offsets", { help = "output directory" })
+local res = gradus.param("res", 60, { integer = true, min = 4, max = 400, help = "marching-cubes samples" })
+local mode = gradus.param("mode", "exact", { choices = { "exact", "mesh" }, help = "closest points" })
 gradus.mkdir(dir)
 local base = gradus.field.expr("sqrt(x^2+y^2) - 3") -- the cylinder of radius 3 (its zero set is x^2+y^2-9 = 0)
 local win = { lo = { -5.5, -5.5 }, hi = { 5.5, 5.5 }, cell = 0.02 }

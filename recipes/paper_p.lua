@@ -5,17 +5,16 @@
 --            and continuous (joined across voxels) modes, on 2 x 2 cells;
 --   Fig. 17: contour + parallel vectors rotated 67 degrees from 45, layers 24, 25.
 local lattice = require "gradus.lattice"
-local profile = gradus.yaml.load(gradus.root .. "/recipes/profiles/paper.yaml")
-local dir = gradus.param("dir", "out/paper_p")
-local res = gradus.param("res", 150)
+local profile = require("gradus.profiles").process(gradus.root .. "/recipes/profiles/paper.yaml")
+local dir = gradus.param("dir", "out/paper_p", { help = "output directory" })
+
+-- the profile's values are the defaults; faces = false: the paper's voxel
+-- templates, hatched up to the cell's sides, no side contours
+local defaults = { cell = profile.voxel, layer = profile.layer, hatch = profile.hatch,
+  beam_offset = profile.beam_offset, thickness = lattice.EQ8, res = 150, faces = false }
 
 local function run(name, over)
-  local p = lattice.params()
-  p.cell, p.layer, p.hatch = profile.voxel, profile.layer, profile.hatch
-  p.beam_offset = profile.beam_offset
-  p.thickness = lattice.EQ8
-  p.res = res
-  p.faces = false -- the paper's voxel templates: hatched up to the cell's sides, no side contours
+  local p = lattice.params(defaults)
   for k, v in pairs(over) do p[k] = v end
   local out = dir .. "/" .. name .. ".cli"
   local st = lattice.run(p, out)

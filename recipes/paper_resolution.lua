@@ -2,7 +2,7 @@
 -- R = 3) and Fig. 11 (one P cell, L = 2) at several resolutions.
 -- "resolution" = samples per axis over the box (sphere: -R..R padded by one
 -- sample spacing; cell: 0..L inclusive). See doc/resolution.md.
-local R = tonumber(gradus.param("radius", 3))
+local R = gradus.param("radius", 3, { unit = "mm", min = 0.1, max = 100, help = "sphere radius" })
 print("sphere R=" .. R)
 print("res", "V", "F")
 for _, r in ipairs({3, 5, 10, 20}) do

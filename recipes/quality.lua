@@ -1,4 +1,4 @@
--- Measured toolpath quality (SPEC.md s.5): for graded P, gyroid and diamond
+-- Measured toolpath quality (doc/contract.md s.5): for graded P, gyroid and diamond
 -- cells, sheet and network, distance modes exact and mesh. A 3 x 3 block of
 -- 2 mm cells (t = 0.04, d = 0.05, b = d/2, one contour) is placed through the
 -- knowledge-base pipeline; on every `step`-th layer the middle voxel is
@@ -12,18 +12,20 @@
 --   gradus run recipes/quality.lua [-D step=5] [-D surfaces=primitive,gyroid,diamond]
 --     [-D layers=1] (one line per checked layer) [-D sheet_thickness=EXPR]
 local lattice = require "gradus.lattice"
-local step = gradus.param("step", 5)
-local res = gradus.param("res", 40)
-local surfaces = gradus.param("surfaces", "primitive,gyroid,diamond")
-local kinds = gradus.param("kinds", "sheet,network")
-local modes = gradus.param("modes", "exact,mesh")
-local per_layer = tonumber(gradus.param("layers", 0)) == 1
+local step = gradus.param("step", 5, { integer = true, min = 1, max = 50, help = "check every step-th layer" })
+local res = gradus.param("res", 40, { integer = true, min = 4, max = 400, help = "marching-cubes samples per cell edge" })
+local surfaces = gradus.param("surfaces", "primitive,gyroid,diamond", { help = "TPMS names, comma-separated" })
+local kinds = gradus.param("kinds", "sheet,network", { help = "sheet and/or network" })
+local modes = gradus.param("modes", "exact,mesh", { help = "distance modes: exact and/or mesh" })
+local per_layer = tonumber(gradus.param("layers", 0, { integer = true, min = 0, max = 1, help = "1: one line per checked layer" })) == 1
+local out = gradus.param("out", "", { help = "YAML file for the table (empty: none)" })
 local d, t, b, L = 0.05, 0.04, 0.025, 2.0
 -- sheets: the paper's eq. (8), graded inside each cell (w wraps at the cell's
 -- faces, so the thickness jumps there: see doc/quality.md); -D
 -- sheet_thickness='0.1*(2*sin(pi*min(max(z,0),2)/4)+1)' is the same inside
 -- the block and continuous across its faces
-local T = { sheet = gradus.param("sheet_thickness", "0.1*(2*sin(pi*(w+1)/4)+1)"), network = "0.1" }
+local T = { sheet = gradus.param("sheet_thickness", "0.1*(2*sin(pi*(w+1)/4)+1)",
+  { unit = "mm", help = "half-thickness of the sheets (expression)" }), network = "0.1" }
 
 local kbdir = os.tmpname()
 os.remove(kbdir)
@@ -78,5 +80,4 @@ for _, surface in ipairs(list(surfaces)) do
   end
 end
 os.execute("rm -rf '" .. kbdir .. "'")
-local out = gradus.param("out", "")
 if out ~= "" then gradus.yaml.save(out, { quality = rows, date = os.date("!%Y-%m-%d"), step = step, res = res }) end

@@ -3,13 +3,14 @@
 -- base. Writes DIR/sweep.csv, DIR/sweep.yaml and a plot DIR/density.svg of
 -- relative density against amplitude, one series per hatch spacing.
 --   gradus run recipes/sweep_p.lua -D dir=out/sweep_p
-local dir = gradus.param("dir", "out/sweep_p")
-local amps = gradus.param("amps", { 0.05, 0.075, 0.1 })
-local hatches = gradus.param("hatches", { 0.04, 0.05, 0.06 })
+local dir = gradus.param("dir", "out/sweep_p", { help = "output directory" })
+local amps = gradus.param("amps", { 0.05, 0.075, 0.1 }, { unit = "mm", help = "thickness amplitudes, comma-separated" })
+local hatches = gradus.param("hatches", { 0.04, 0.05, 0.06 }, { unit = "mm", help = "hatch spacings, comma-separated" })
+local jobs = gradus.param("jobs", 2, { integer = true, min = 1, max = 64, help = "runs at a time" })
 local rows = gradus.sweep {
   recipe = gradus.root .. "/recipes/graded_p.lua",
   params = { amp = amps, hatch = hatches },
-  jobs = gradus.param("jobs", 2),
+  jobs = jobs,
   dir = dir,
   quiet = gradus.quiet(),
 }

@@ -4,7 +4,8 @@ local gradus = require "gradus"
 local M = {}
 
 local USAGE = [[
-usage: gradus run RECIPE [-D name=value]... [-o OUTPUT] [--stats FILE] [-q]
+usage: gradus run RECIPE [-D name=value]... [-o OUTPUT] [--stats FILE] [-q] [--allow-unused]
+       gradus run RECIPE --help    the recipe's parameters: defaults, units, ranges
        gradus sweep RECIPE -D name=v1,v2,... -D other=a:b:step [-j N] [-o DIR]
        gradus cli info FILE        layers, bounds, counts and lengths of a CLI file
        gradus kb list|show KEY|verify|prune [--dir DIR]
@@ -12,7 +13,8 @@ usage: gradus run RECIPE [-D name=value]... [-o OUTPUT] [--stats FILE] [-q]
        gradus --version | help
 
 Recipes are Lua files (see recipes/ and doc/guide.md). They read -D values
-with gradus.param(name, default); -o with gradus.output(default).]]
+with gradus.param(name, default [, spec]); -o with gradus.output(default).
+A -D name the recipe does not declare is an error (nothing is written).]]
 
 local function eprint(...)
   io.stderr:write(table.concat({ ... }, " "), "\n")
@@ -77,6 +79,7 @@ function M.recipe_env()
   local base = { gradus = gradus }
   for _, k in ipairs(SAFE) do base[k] = _G[k] end
   base._G = base
+  require("gradus.strict").guard(base)
   return setmetatable({}, {
     __index = function(_, k)
       local v = base[k]
@@ -89,47 +92,26 @@ function M.recipe_env()
   })
 end
 
-local function edit_distance(a, b)
-  local prev = {}
-  for j = 0, #b do prev[j] = j end
-  for i = 1, #a do
-    local cur = { [0] = i }
-    for j = 1, #b do
-      cur[j] = math.min(prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (a:sub(i, i) == b:sub(j, j) and 0 or 1))
-    end
-    prev = cur
-  end
-  return prev[#b]
-end
-
---- Run a recipe file with parameters. opts: output, stats, quiet.
+--- Run a recipe file with parameters. opts: output, stats, quiet, help
+-- (list the recipe's parameters instead of running it), allow_unused.
 -- Returns true, or false and the error message.
 function M.run(path, params, opts)
   opts = opts or {}
+  local strict = require "gradus.strict"
   local ctx = { params = params or {}, read = {}, output = opts.output, stats = opts.stats,
-    quiet = opts.quiet, recipe = path }
+    quiet = opts.quiet, recipe = path, help = opts.help, allow_unused = opts.allow_unused }
   local saved = gradus._ctx
   gradus._ctx = ctx
   local chunk, err = loadfile(path, "t", M.recipe_env())
   local ok = chunk ~= nil
   if chunk then ok, err = xpcall(chunk, handler) end
+  -- unknown -D names stop the job at its first action (gradus.strict); a
+  -- recipe that did nothing is checked here
+  if ok and not ctx.help and not ctx.acted then ok, err = pcall(strict.check_unused, ctx) end
   gradus._ctx = saved
+  if ctx.stop and ctx.stop.help or (ok and ctx.help) then print(strict.help_text(ctx)) return true end
+  if ctx.stop then return false, ctx.stop.msg end
   if not ok then return false, err end
-  -- -D names never read: probable typos
-  local known = {}
-  for k in pairs(ctx.read) do known[#known + 1] = k end
-  table.sort(known)
-  for name in pairs(ctx.params) do
-    if not ctx.read[name] then
-      local best, bd = nil, 3
-      for _, k in ipairs(known) do
-        local d = edit_distance(name, k)
-        if d < bd then best, bd = k, d end
-      end
-      eprint(string.format("gradus: warning: -D %s was never read by %s (a typo?%s)", name, path,
-        best and (" did you mean '" .. best .. "'?") or ""))
-    end
-  end
   return true
 end
 
@@ -154,6 +136,10 @@ function M.parse_args(args, first)
       o.output = value()
     elseif a == "--stats" then
       o.stats = value()
+    elseif a == "--help" or a == "-h" then
+      o.help = true
+    elseif a == "--allow-unused" then
+      o.allow_unused = true
     elseif a == "-q" or a == "--quiet" then
       o.quiet = true
     elseif a == "-j" then

@@ -3,7 +3,17 @@
 --   lasers: [{name, field: {lo: [x,y], hi: [x,y]}, contour|hatch|edge: {power, speed}}]
 --   jump_speed (mm/s), jump_delay (s per jump), polygon_delay (s per block)
 local gradus = require "gradus"
+local strict = require "gradus.strict"
 local M = {}
+
+-- the keys a machine profile may have, per mapping (anything else is an error)
+local function set(...) local t = {} for _, k in ipairs({ ... }) do t[k] = true end return t end
+local KEYS = {
+  machine = set("name", "plate", "jump_speed", "jump_delay", "polygon_delay", "recoat_time", "lasers"),
+  laser = set("name", "field", "contour", "hatch", "edge"),
+  box = set("lo", "hi"),
+  style = set("power", "speed"),
+}
 
 local KINDS = { "contour", "hatch", "edge" }
 local DEFAULT_STYLE = {
@@ -30,24 +40,37 @@ local function point(src, what, v)
   return { v[1], v[2] }
 end
 
---- M.normalize(profile, source) -> machine with every field checked and
--- defaults filled. Errors name the source and the field.
-function M.normalize(p, src)
+local function delay(src, what, v)
+  if type(v) ~= "number" or not (v >= 0 and v <= 3600) then bad(src, what, "must be in [0, 3600] s, got %s", tostring(v)) end
+  return v
+end
+
+--- M.normalize(profile, source [, marks]) -> machine with every field
+-- checked and defaults filled. Errors name the source and the field; an
+-- unknown key is an error too, at its line and column when marks (from
+-- gradus.yaml.load(path, {marks = true})) are given.
+function M.normalize(p, src, marks)
   src = src or "machine profile"
   if type(p) ~= "table" then bad(src, "profile", "must be a mapping") end
+  strict.check_keys(p, KEYS.machine, src, marks, "the machine profile")
+  if p.plate ~= nil then strict.check_keys(p.plate, KEYS.box, src, marks, "plate") end
   if type(p.lasers) ~= "table" or #p.lasers == 0 then bad(src, "lasers", "must be a non-empty list") end
   local m = {
     name = p.name or src,
     jump_speed = positive(src, "jump_speed", p.jump_speed or 5000),
-    jump_delay = p.jump_delay or 0,
-    polygon_delay = p.polygon_delay or 0,
+    jump_delay = delay(src, "jump_delay", p.jump_delay or 0),
+    polygon_delay = delay(src, "polygon_delay", p.polygon_delay or 0),
+    recoat_time = delay(src, "recoat_time", p.recoat_time or 0),
     lasers = {},
   }
-  if type(m.jump_delay) ~= "number" or m.jump_delay < 0 then bad(src, "jump_delay", "must be >= 0 s") end
-  if type(m.polygon_delay) ~= "number" or m.polygon_delay < 0 then bad(src, "polygon_delay", "must be >= 0 s") end
   for i, l in ipairs(p.lasers) do
     local w = ("lasers[%d]"):format(i)
     if type(l) ~= "table" then bad(src, w, "must be a mapping") end
+    strict.check_keys(l, KEYS.laser, src, marks, w)
+    if l.field ~= nil then strict.check_keys(l.field, KEYS.box, src, marks, w .. ".field") end
+    for _, k in ipairs(KINDS) do
+      if l[k] ~= nil then strict.check_keys(l[k], KEYS.style, src, marks, w .. "." .. k) end
+    end
     local out = { name = l.name or ("laser" .. i) }
     if l.field ~= nil then
       out.field = { lo = point(src, w .. ".field.lo", l.field.lo), hi = point(src, w .. ".field.hi", l.field.hi) }
@@ -69,7 +92,8 @@ end
 
 --- M.load(path) -> machine
 function M.load(path)
-  return M.normalize(gradus.yaml.load(path), path)
+  local p, marks = gradus.yaml.load(path, { marks = true })
+  return M.normalize(p, path, marks)
 end
 
 --- M.default(n) -> a machine of n identical lasers reaching the whole plate.

@@ -9,71 +9,114 @@ local M = {}
 -- The paper's eq. (8): graded half-thickness along the cell's local height.
 M.EQ8 = "0.1*(2*sin(pi*(w+1)/4)+1)"
 
-local function vec(name, v, n)
-  if type(v) == "number" then
-    local t = {}
-    for i = 1, n do t[i] = v end
-    return t
+local strict = require "gradus.strict"
+local SURFACES = { "primitive", "gyroid", "diamond", "iwp", "neovius", "frd", "fischer_koch_s", "lidinoid",
+  "split_p", "octo" }
+local FN = { ["function"] = true }
+
+--- M.PARAMS: the parameters of the general recipe (doc/contract.md section
+-- 7, plus a few): { name, default, spec } with the unit, one line of help
+-- and the accepted range (gradus.strict.check). `gradus run RECIPE --help`,
+-- help("name") and the checks of M.run all read this list.
+M.PARAMS = {
+  { "surface", "primitive", { choices = SURFACES, help = "TPMS surface of the cells" } },
+  { "cell", 2.0, { unit = "mm", min = 0.1, max = 100, help = "cell (voxel) size L" } },
+  { "cells", "2,2,1", { n = 3, integer = true, min = 1, max = 100000, help = "cells along x, y, z" } },
+  { "origin", "0,0,0", { n = 3, unit = "mm", min = -1000, max = 1000, help = "min corner x, y, z of the box of cells" } },
+  { "level", 0.0, { min = -20, max = 20, help = "iso-level c of the TPMS (the surface phi = c)" } },
+  { "kind", "sheet", { choices = { "sheet", "network" }, help = "sheet (a wall around the surface) or network (one side, grown)" } },
+  { "thickness", M.EQ8, { kind = "expr", unit = "mm", min = 0.005, max = 10,
+    help = "graded half-thickness T: a number or an expression in x, y, z, u, v, w, L, pi" } },
+  { "inside", "", { kind = "expr", empty = true, unit = "mm", min = 0.005, max = 10,
+    help = "inside half-thickness of an asymmetric sheet (empty: same as thickness)" } },
+  { "layer", 0.04, { unit = "mm", min = 0.005, max = 1, help = "layer thickness t" } },
+  { "hatch", 0.05, { unit = "mm", min = 0.005, max = 2, help = "hatch spacing d" } },
+  { "beam_offset", "auto", { auto = "hatch/2", unit = "mm", min = 0, max = 1,
+    help = "contour offset b inside the section boundary (at most cell/4)" } },
+  { "angle", 45.0, { unit = "degrees", min = -360, max = 360, help = "hatch angle of layer 1" } },
+  { "rotation", 67.0, { unit = "degrees", min = -360, max = 360, help = "hatch angle added per layer" } },
+  { "pattern", "parallel", { choices = { "parallel", "zigzag", "island" },
+    help = "parallel (joined across voxels), zigzag, island (per voxel)" } },
+  { "alternate", true, { help = "reverse every other hatch vector" } },
+  { "contours", 1, { integer = true, min = 0, max = 20, help = "contour scans per boundary" } },
+  { "contour_first", true, { help = "contours before hatches" } },
+  { "lasers", 1, { integer = true, min = 1, max = 16, help = "identical lasers (without a machine profile)" } },
+  { "machine", "", { help = "machine profile YAML (lasers, fields, speeds); empty: `lasers` identical lasers" } },
+  { "assign", "balance", { choices = { "balance", "zones" }, allow = FN, help = "laser assignment: balance (scan time) or zones" } },
+  { "sequence", "raster", { choices = sequence.names, allow = FN, help = "order of the islands of a layer" } },
+  { "kb", "", { help = "knowledge-base directory; empty: the default cache; off: compute every voxel directly" } },
+  { "format", "ascii", { choices = { "ascii", "binary" }, help = "CLI format" } },
+  { "res", 40, { integer = true, min = 4, max = 400, help = "marching-cubes samples per cell edge for the surface H" } },
+  { "mode", "exact", { choices = { "exact", "mesh" }, help = "closest points: exact (analytic) or mesh (the paper's)" } },
+  { "slice_cell", "auto", { auto = "hatch/2", unit = "mm", min = 0.0005, max = 1,
+    help = "grid step of the in-plane distance field (at most hatch/2, at least cell/4000)" } },
+  { "quant", 0.001, { unit = "mm", min = 1e-6, max = 0.01, help = "thickness quantisation of template keys" } },
+  { "threads", 2, { integer = true, min = 1, max = 64, help = "worker threads" } },
+  { "layers", "", { help = "range a:b of layers to compute (empty: all)" } },
+  { "pictures", "", { help = "layer numbers to draw as SVG/PNG, e.g. 24,25" } },
+  { "split", false, { help = "also write one CLI per laser" } },
+  { "verify", "", { help = "layer numbers to check against the true section (stats: quality)" } },
+  { "min_length", 0.0, { unit = "mm", min = 0, max = 10, help = "hatch vectors shorter than this are dropped" } },
+  { "domain", "", { allow = { userdata = true }, help = "design domain: an STL file of the part or an expression negative inside" } },
+  { "skin", 0.0, { unit = "mm", min = 0, max = 10, help = "solid skin depth along the domain's boundary" } },
+  { "faces", true, { help = "contour the lattice where the box of cells cuts it" } },
+  { "qualify", false, { allow = FN, help = "verify every template built and qualify it (or a Lua rule)" } },
+}
+-- fields of the parameter table that are not -D parameters
+M.FIELDS = { rule = "p.rule(i, j, k, x, y, z) -> {surface=, thickness=, laser=, seq=, skip=} per voxel" }
+
+local SPEC = {}
+for _, d in ipairs(M.PARAMS) do SPEC[d[1]] = d end
+
+--- M.params([defaults]): the recipe parameters, each read with gradus.param
+-- (so each is a -D name) and returned in a strict table: assigning or
+-- reading a field that is not a parameter raises. defaults (optional)
+-- replaces declared defaults: lattice.params{cells = "4,4,2"}.
+function M.params(defaults)
+  local values = {}
+  for _, d in ipairs(M.PARAMS) do
+    local def = d[2]
+    if defaults and defaults[d[1]] ~= nil then def = defaults[d[1]] end
+    values[d[1]] = gradus.param(d[1], def, d[3])
   end
-  if type(v) == "string" then
-    local t = {}
-    for item in v:gmatch("[^,]+") do
-      local x = tonumber(item)
-      if not x then error(("bad %s '%s': %d numbers 'a,b,c' expected"):format(name, v, n), 3) end
-      t[#t + 1] = x
-    end
-    v = t
-  end
-  if type(v) ~= "table" or #v ~= n then
-    error(("bad %s: %d numbers expected, got %s"):format(name, n, tostring(v)), 3)
-  end
-  return v
+  local known = {}
+  for k in pairs(SPEC) do known[k] = true end
+  for k in pairs(M.FIELDS) do known[k] = true end
+  return strict.table(known, values, "the lattice recipe (lattice.params)")
 end
 
---- M.params(): the recipe parameters of SPEC.md section 7 (plus a few), each
--- read with gradus.param and checked.
-function M.params()
-  local P = gradus.param
-  local p = {
-    surface = P("surface", "primitive"),
-    cell = P("cell", 2.0),
-    cells = P("cells", "2,2,1"),
-    origin = P("origin", "0,0,0"),
-    level = P("level", 0.0),
-    kind = P("kind", "sheet"),
-    thickness = P("thickness", M.EQ8),
-    inside = P("inside", ""),
-    layer = P("layer", 0.04),
-    hatch = P("hatch", 0.05),
-    beam_offset = P("beam_offset", -1.0),
-    angle = P("angle", 45.0),
-    rotation = P("rotation", 67.0),
-    pattern = P("pattern", "parallel"),
-    alternate = P("alternate", true),
-    contours = P("contours", 1),
-    contour_first = P("contour_first", true),
-    lasers = P("lasers", 1),
-    machine = P("machine", ""),
-    assign = P("assign", "balance"),
-    sequence = P("sequence", "raster"),
-    kb = P("kb", ""),
-    format = P("format", "ascii"),
-    res = P("res", 40),
-    mode = P("mode", "exact"),
-    slice_cell = P("slice_cell", -1.0),
-    quant = P("quant", 0.001),
-    threads = P("threads", 2),
-    layers = P("layers", ""),
-    pictures = P("pictures", ""),
-    split = P("split", false),
-    verify = P("verify", ""),
-    min_length = P("min_length", 0.0),
-    domain = P("domain", ""),
-    skin = P("skin", 0.0),
-    faces = P("faces", true),
-    qualify = P("qualify", false),
-  }
-  return p
+-- The values of p, checked against the declarations (numbers finite and in
+-- range, choices, vectors converted to tables) and against each other.
+local function checked(p)
+  local v = strict.values(p)
+  local q = {}
+  for k, x in pairs(v) do
+    if not SPEC[k] and not M.FIELDS[k] then
+      local names = {}
+      for n in pairs(SPEC) do names[#names + 1] = n end
+      error(("unknown parameter '%s'%s"):format(tostring(k), strict.suggest(tostring(k), names)), 0)
+    end
+    q[k] = x
+  end
+  for _, d in ipairs(M.PARAMS) do
+    local k = d[1]
+    if q[k] == nil then q[k] = d[2] end
+    q[k] = strict.check(k, q[k], d[3], d[2])
+  end
+  local function rel(ok, fmt, ...) if not ok then error(fmt:format(...), 0) end end
+  rel(q.layer <= q.cell, "parameter 'layer' (%g mm) must not exceed the cell (%g mm)", q.layer, q.cell)
+  rel(q.cell / q.hatch <= 2000, "parameter 'hatch' must be at least cell/2000 = %g mm for a cell of %g mm, got %g",
+    q.cell / 2000, q.cell, q.hatch)
+  if q.beam_offset ~= "auto" then
+    rel(q.beam_offset <= q.cell / 4, "parameter 'beam_offset' must be auto (hatch/2) or in [0, %g] mm (cell/4), got %g",
+      q.cell / 4, q.beam_offset)
+  end
+  if q.slice_cell ~= "auto" then
+    rel(q.slice_cell <= q.hatch / 2 and q.slice_cell >= q.cell / 4000,
+      "parameter 'slice_cell' must be auto (hatch/2) or in [%g, %g] mm (cell/4000 .. hatch/2), got %g",
+      q.cell / 4000, q.hatch / 2, q.slice_cell)
+  end
+  return q
 end
 
 local function parse_range(s, n)
@@ -120,17 +163,10 @@ end
 -- Writes the CLI to `out`, the manifest beside it, stats to --stats, and SVG
 -- pictures of p.pictures layers. Returns the stats table.
 function M.run(p, out)
-  local cells = vec("cells", p.cells, 3)
-  for a = 1, 3 do
-    if cells[a] < 1 or cells[a] ~= math.floor(cells[a]) then
-      error(("bad cells '%s': positive whole numbers expected"):format(tostring(p.cells)), 2)
-    end
-  end
-  local origin = vec("origin", p.origin, 3)
+  strict.action()
+  p = checked(p)
+  local cells, origin = p.cells, p.origin
   local domain = domain_of(p.domain, origin, cells, p.cell)
-  if p.kind ~= "sheet" and p.kind ~= "network" then
-    error(("bad kind '%s' (sheet or network)"):format(tostring(p.kind)), 2)
-  end
   local machine
   if p.machine ~= "" then
     machine = lasers.load(p.machine)
@@ -139,10 +175,10 @@ function M.run(p, out)
   end
   local job = gradus.place.job {
     cell = p.cell, origin = origin, cells = cells, layer = p.layer, hatch = p.hatch,
-    beam_offset = p.beam_offset >= 0 and p.beam_offset or nil, contours = p.contours,
+    beam_offset = p.beam_offset ~= "auto" and p.beam_offset or nil, contours = p.contours,
     contour_first = p.contour_first, angle = p.angle, rotation = p.rotation, pattern = p.pattern,
     alternate = p.alternate, res = p.res, mode = p.mode, quant = p.quant, threads = p.threads,
-    slice_cell = p.slice_cell > 0 and p.slice_cell or nil, min_length = p.min_length,
+    slice_cell = p.slice_cell ~= "auto" and p.slice_cell or nil, min_length = p.min_length,
     faces = p.faces, verify = p.qualify and true or false,
   }
   job:machine(machine)
@@ -161,8 +197,6 @@ function M.run(p, out)
   local zone
   if #machine.lasers > 1 and p.assign == "zones" then
     zone = lasers.zones(machine, origin[1], origin[1] + nx * L)
-  elseif p.assign ~= "balance" and p.assign ~= "zones" and type(p.assign) ~= "function" then
-    error(("bad assign '%s' (balance, zones or a Lua function)"):format(tostring(p.assign)), 2)
   end
   for k = 0, nz - 1 do
     for j = 0, ny - 1 do
@@ -250,7 +284,7 @@ function M.run(p, out)
   -- quality of the checked layers on voxel (0,0,k): the vectors against the
   -- true section (the graded offset field sliced directly, 4x finer grid)
   if #checks > 0 then
-    local L, d, b = p.cell, p.hatch, p.beam_offset >= 0 and p.beam_offset or p.hatch / 2
+    local L, d, b = p.cell, p.hatch, st.effective.beam_offset
     local q = { pore_max = 0, overmelt_max = 0, contour_dev_max_mm = 0, layers = {} }
     local truths = {}
     for _, g in ipairs(checks) do
@@ -279,6 +313,9 @@ function M.run(p, out)
   for k, v in pairs(p) do
     if type(v) ~= "function" and type(v) ~= "userdata" then st.parameters[k] = v end
   end
+  -- the values the job used, not "auto"
+  st.parameters.beam_offset = st.effective.beam_offset
+  st.parameters.slice_cell = st.effective.slice_cell
   gradus.write_stats(st)
   return st, kept
 end

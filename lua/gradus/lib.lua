@@ -20,39 +20,74 @@ local function auto(raw)
   return tonumber(raw) or raw
 end
 
---- gradus.param(name, default): the value of `-D name=value`, converted to
--- the type of `default` (number, boolean, string, or a table of numbers
--- written "a,b,c"), or `default` when not given.
-function gradus.param(name, default)
+--- gradus.param(name, default [, spec]): the value of `-D name=value`,
+-- converted to the type of `default` (number, boolean, string, or a table of
+-- numbers written "a,b,c"), or `default` when not given. Declares the
+-- parameter: spec = {unit=, help=, min=, max=, integer=, choices=, n=, auto=}
+-- (gradus.strict.check) gives `gradus run RECIPE --help` its line and checks
+-- a given value against the accepted range. Numbers must be finite.
+function gradus.param(name, default, spec)
   if type(name) ~= "string" then error("bad argument #1 to 'param' (string expected)", 2) end
+  if spec ~= nil and type(spec) ~= "table" then error("bad argument #3 to 'param' (table expected)", 2) end
+  local strict = require "gradus.strict"
   local ctx = gradus._ctx
+  local s = strict.declare(ctx, name, default, spec)
   ctx.read[name] = true
+  ctx.returned = ctx.returned or {}
   local raw = ctx.params[name]
-  if raw == nil then return default end
-  if type(raw) ~= "string" then return raw end -- set from Lua (sweeps)
-  local t = type(default)
-  if t == "number" then
-    local v = tonumber(raw)
-    if not v or v ~= v then
-      error(("parameter '%s': a number is expected, got '%s'"):format(name, raw), 2)
-    end
-    return v
-  elseif t == "boolean" then
-    return to_boolean(name, raw)
-  elseif t == "table" then
-    local out = {}
-    for item in raw:gmatch("[^,]+") do
-      local v = tonumber(item)
-      if not v then
-        error(("parameter '%s': a list of numbers 'a,b,c' is expected, got '%s'"):format(name, raw), 2)
-      end
-      out[#out + 1] = v
-    end
-    return out
-  elseif t == "string" then
-    return raw
+  if raw == nil or ctx.help then
+    ctx.returned[name] = default
+    return default
   end
-  return auto(raw)
+  local v
+  if type(raw) ~= "string" then
+    v = raw -- set from Lua
+  else
+    local t = type(default)
+    if t == "number" then
+      v = tonumber(raw)
+      if not v or v ~= v or v == math.huge or v == -math.huge then
+        error(("parameter '%s': a finite number is expected, got '%s'"):format(name, raw), 2)
+      end
+    elseif t == "boolean" then
+      v = to_boolean(name, raw)
+    elseif t == "table" then
+      v = {}
+      for item in raw:gmatch("[^,]+") do
+        local x = tonumber(item)
+        if not x or x ~= x or x == math.huge or x == -math.huge then
+          error(("parameter '%s': a list of finite numbers 'a,b,c' is expected, got '%s'"):format(name, raw), 2)
+        end
+        v[#v + 1] = x
+      end
+    elseif t == "string" then
+      v = raw
+    else
+      v = auto(raw)
+    end
+  end
+  if spec then
+    local ok, res = pcall(strict.check, name, v, s, default)
+    if not ok then error(("%s (-D %s=%s)"):format(tostring(res), name, tostring(raw)), 2) end
+    v = res
+  end
+  ctx.returned[name] = v
+  return v
+end
+
+--- gradus.extra_params(pattern [, help]): declare free-form parameters: every
+-- -D name matching the Lua pattern is accepted. Returns name -> raw string
+-- of those given.
+function gradus.extra_params(pattern, help)
+  if type(pattern) ~= "string" then error("bad argument #1 to 'extra_params' (Lua pattern expected)", 2) end
+  local ctx = gradus._ctx
+  ctx.extra = ctx.extra or {}
+  ctx.extra[#ctx.extra + 1] = pattern
+  local out = {}
+  for k, v in pairs(ctx.params) do
+    if k:match(pattern) then out[k] = v end
+  end
+  return out
 end
 
 --- gradus.output(default): the path given with -o, or `default`.
@@ -211,11 +246,17 @@ function gradus.yaml.save(path, value)
   return gradus.write_file(path, gradus.yaml.encode(value))
 end
 
---- gradus.write_stats(tbl): write the job's stats (SPEC.md section 8) to the
--- --stats file, if one was given. Returns the path or nil.
+--- gradus.write_stats(tbl): write the job's stats (doc/contract.md section 8)
+-- to the --stats file, if one was given. Returns the path or nil. When the
+-- job ran with --allow-unused, the stats say so and list the ignored names.
 function gradus.write_stats(tbl)
-  local path = gradus._ctx.stats
+  local ctx = gradus._ctx
+  local path = ctx.stats
   if not path then return nil end
+  if ctx.allow_unused then
+    tbl.allow_unused = true
+    tbl.unused_parameters = ctx.unused or {}
+  end
   return gradus.yaml.save(path, tbl)
 end
 

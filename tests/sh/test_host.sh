@@ -30,10 +30,11 @@ out=$($G run "$d/r.lua" -D mode=yaml 2>&1)
 expect "YAML error line and column" "p.yaml:[0-9]+:[0-9]+: " "$out"
 out=$($G run "$d/r.lua" -D mode=global 2>&1)
 expect "undeclared global" "r.lua:5: read of undeclared global 'undefined_thing'" "$out"
-out=$($G run "$d/r.lua" -D nn=4 2>&1)
-expect "unknown -D reported" "-D nn was never read .*did you mean 'n'" "$out"
+out=$($G run "$d/r.lua" -D nn=4 2>&1); rc=$?
+expect "unknown -D reported" "-D nn=4: .*r.lua does not declare 'nn' \(did you mean 'n'\?\)" "$out"
+[ $rc != 0 ] && pass "unknown -D exit non-zero" || fail "unknown -D exit non-zero" "rc=$rc"
 out=$($G run "$d/r.lua" -D n=abc 2>&1); rc=$?
-expect "bad -D value" "parameter 'n': a number is expected, got 'abc'" "$out"; [ $rc != 0 ] && pass "bad -D exit" || fail "bad -D exit" "rc=$rc"
+expect "bad -D value" "parameter 'n': a finite number is expected, got 'abc'" "$out"; [ $rc != 0 ] && pass "bad -D exit" || fail "bad -D exit" "rc=$rc"
 out=$(printf '1+2\nlocal t = {\n  a = 5 }\nprint(t == nil)\nmath.sqrt(16)\n' | $G 2>&1)
 expect "REPL evaluates stdin" "^3$" "$out"; expect "REPL multi-line + expression" "^4.0$" "$out"
 out=$($G --version); expect "version" "^gradus [0-9]+\.[0-9]+\.[0-9]+" "$out"
