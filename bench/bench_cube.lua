@@ -49,7 +49,7 @@ local tcache = timed(("dd if=/dev/zero of='%s/floor2.bin' bs=4M count=%d status=
 local per_layer_kb = twarm / cold.layers
 local per_layer_direct = tdirect / direct.layers
 print(("cube 40 mm, 8000 voxels, %d layers, %d classes (reuse %.0fx), CLI %.1f MB"):format(cold.layers,
-  cold.templates.unique, cold.templates.reuse_ratio, bytes / 2 ^ 20))
+  cold.templates.unique, cold.templates.voxels_per_template, bytes / 2 ^ 20))
 print(("  cold knowledge base: %6.2f s wall (templates %.2f s, layers %.2f s of which writing %.2f s), peak RSS %.0f MB"):format(tcold,
   cold.seconds.templates, cold.seconds.layers, cold.seconds.write, cold.peak_rss_mb))
 print(("  warm knowledge base: %6.2f s wall (layers %.2f s of which writing %.2f s), peak RSS %.0f MB, %d templates built"):format(twarm,

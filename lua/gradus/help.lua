@@ -94,12 +94,59 @@ function M.functions()
   return out
 end
 
+-- The help of a recipe parameter of the lattice recipe (its declaration:
+-- default, unit, range, one line), or nil.
+local function param_text(name)
+  local ok, lattice = pcall(require, "gradus.lattice")
+  if not ok then return nil end
+  local strict = require "gradus.strict"
+  for _, d in ipairs(lattice.PARAMS) do
+    if d[1] == name then
+      local s = d[3]
+      local def = s.auto and ("auto: " .. s.auto) or strict.fmt(d[2])
+      local r = strict.range_text(s)
+      return ("parameter %s of the lattice recipe (-D %s=..., lattice.params().%s): %s\n  default %s%s%s"):format(
+        name, name, name, s.help or "", def == "" and '""' or def,
+        s.unit and not s.choices and (" " .. s.unit) or "", r ~= "" and ("; accepted: " .. r) or "")
+    end
+  end
+  return nil
+end
+
+-- Every section whose name ends in `short` after a '.' or ':' (help("tpms")
+-- finds field.tpms), sorted by name.
+local function by_short_name(secs, short)
+  local names = {}
+  for name in pairs(secs) do
+    if name ~= short and (name:sub(-#short - 1) == "." .. short or name:sub(-#short - 1) == ":" .. short) then
+      names[#names + 1] = name
+    end
+  end
+  table.sort(names)
+  return names
+end
+
 --- M.text(x): the help text of x (a function, a table of the module, or a
--- name such as "field.tpms" or "mesh:write").
+-- name: "field.tpms", "mesh:write", a short name such as "tpms", or a recipe
+-- parameter such as "hatch").
 function M.text(x)
   local secs = load_sections()
   if type(x) == "string" then
-    return secs[x:gsub("^gradus%.", "")] or ("no help for '" .. x .. "'")
+    local name = x:gsub("^gradus%.", "")
+    local parts, seen = {}, {}
+    local function add(text)
+      if text and not seen[text] then seen[text] = true parts[#parts + 1] = text end
+    end
+    add(secs[name])
+    add(param_text(name))
+    if not name:find("[.:]") then
+      for _, n in ipairs(by_short_name(secs, name)) do add(secs[n]) end
+      if type(gradus[name]) == "table" then
+        add(("gradus.%s: a table of the module; help(gradus.%s) lists it"):format(name, name))
+      end
+    end
+    if #parts == 0 then return "no help for '" .. x .. "'" end
+    return table.concat(parts, "\n\n")
   end
   if type(x) == "function" then
     for name, f in pairs(M.functions()) do
