@@ -1,4 +1,4 @@
-/* cli.h: Common Layer Interface 2.0 output and input (SPEC.md s.6).
+/* cli.h: Common Layer Interface 2.0 output and input (doc/contract.md s.6).
  * Writers stream layer by layer through gr_atomic (temporary file + rename,
  * nothing left behind on error). Build-style id of a block: laser*3 + kind + 1
  * (labels "laserN-contour|hatch|edge"). */

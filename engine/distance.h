@@ -1,5 +1,5 @@
 /* distance.h: closest points on triangle meshes (a BVH) and the graded
- * offset field of the paper's section 3.3 (SPEC.md s.3):
+ * offset field of the paper's section 3.3 (doc/contract.md s.3):
  *   sheet:   g(p) = d(p) - T(q(p))      network: g(p) = sd(p) - T(q(p))
  * q(p) the closest point of H (the marching-cubes mesh of phi = 0), d its
  * distance, sd = +d where phi > 0 and -d elsewhere, T the graded

@@ -2,7 +2,7 @@
  * list and evaluated over arrays of points (no Lua, no per-point parsing).
  * Grammar: numbers, named variables, named constants, + - * / ^ (right assoc.),
  * unary -, parentheses, and the functions
- * sin cos tan asin acos atan exp log sqrt abs min max floor (SPEC.md s.3).
+ * sin cos tan asin acos atan exp log sqrt abs min max floor (doc/contract.md s.3).
  * Thread-safe: a compiled expression is immutable. */
 #ifndef GR_EXPR_H
 #define GR_EXPR_H

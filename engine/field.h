@@ -19,7 +19,7 @@ typedef int (*gr_field_gradfn)(void *ud, size_t n, const double *x,
                                const double *y, const double *z, double *gx,
                                double *gy, double *gz, gr_err *e);
 
-/* ---- TPMS catalogue (SPEC.md section 2) ---- */
+/* ---- TPMS catalogue (doc/contract.md section 2) ---- */
 int gr_tpms_count(void);
 const char *gr_tpms_name(int i);
 int gr_tpms_lookup(const char *name); /* index, or -1 */

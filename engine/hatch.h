@@ -1,4 +1,4 @@
-/* hatch.h: the hatch primitive (paper s.3.4, SPEC.md s.5): contours along the
+/* hatch.h: the hatch primitive (paper s.3.4, doc/contract.md s.5): contours along the
  * in-plane inward offsets of a section and parallel / zigzag / island hatch
  * infill on a GLOBAL family of lines, so that separately hatched neighbouring
  * regions produce collinear vectors whose endpoints meet.

@@ -27,7 +27,7 @@ typedef struct gr_machine {
 } gr_machine;
 gr_machine gr_machine_default(int n);
 
-/* What a run produced (SPEC.md section 8). */
+/* What a run produced (doc/contract.md section 8). */
 typedef struct gr_job_stats {
   int layers;                  /* layers written */
   int voxels;                  /* voxels with a lattice */

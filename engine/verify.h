@@ -1,5 +1,5 @@
 /* verify.h: quality figures of a layer's scan vectors against its section
- * (SPEC.md s.5): pore fraction, overmelt fraction and contour deviation.
+ * (doc/contract.md s.5): pore fraction, overmelt fraction and contour deviation.
  * Section and melt tracks are rasterised on a pixel grid: a pixel is solid
  * when its centre is inside the section (even-odd), melted when its centre
  * lies within track/2 of any scanned segment (contours, hatches, edges,

@@ -1,6 +1,6 @@
 -- gradus.lattice: the whole pipeline from a table of options: a box (or a
 -- domain) of graded TPMS cells to a CLI file, a manifest, stats and pictures.
--- recipes/lattice.lua reads the SPEC.md section 7 parameters and calls run().
+-- recipes/lattice.lua reads the parameters of doc/contract.md section 7 and calls run().
 local gradus = require "gradus"
 local sequence = require "gradus.sequence"
 local lasers = require "gradus.lasers"
@@ -65,8 +65,8 @@ M.PARAMS = {
 -- fields of the parameter table that are not -D parameters
 M.FIELDS = { rule = "p.rule(i, j, k, x, y, z) -> {surface=, thickness=, laser=, seq=, skip=} per voxel" }
 
-local SPEC = {}
-for _, d in ipairs(M.PARAMS) do SPEC[d[1]] = d end
+local DECL = {}
+for _, d in ipairs(M.PARAMS) do DECL[d[1]] = d end
 
 --- M.params([defaults]): the recipe parameters, each read with gradus.param
 -- (so each is a -D name) and returned in a strict table: assigning or
@@ -80,7 +80,7 @@ function M.params(defaults)
     values[d[1]] = gradus.param(d[1], def, d[3])
   end
   local known = {}
-  for k in pairs(SPEC) do known[k] = true end
+  for k in pairs(DECL) do known[k] = true end
   for k in pairs(M.FIELDS) do known[k] = true end
   return strict.table(known, values, "the lattice recipe (lattice.params)")
 end
@@ -91,9 +91,9 @@ local function checked(p)
   local v = strict.values(p)
   local q = {}
   for k, x in pairs(v) do
-    if not SPEC[k] and not M.FIELDS[k] then
+    if not DECL[k] and not M.FIELDS[k] then
       local names = {}
-      for n in pairs(SPEC) do names[#names + 1] = n end
+      for n in pairs(DECL) do names[#names + 1] = n end
       error(("unknown parameter '%s'%s"):format(tostring(k), strict.suggest(tostring(k), names)), 0)
     end
     q[k] = x
@@ -156,7 +156,7 @@ end
 --- M.run(p, out): run the pipeline. p: params (see M.params) and optional
 -- rules: p.rule(i, j, k, x, y, z) -> table {surface=, thickness=, laser=,
 -- seq=, skip=} per voxel; p.qualify: true (verify every template built and
--- qualify it by the SPEC targets) or a function(quality) -> ok, reason that
+-- qualify it by the quality targets (doc/contract.md s.5)) or a function(quality) -> ok, reason that
 -- adds the recipe's own rule (quality: pore, overmelt, max_dev mm, layers,
 -- thin_walls, key); p.domain (a field, negative inside, an expression
 -- or an STL file); p.skin (mm).

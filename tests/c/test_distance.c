@@ -199,7 +199,7 @@ TEST(cylinder_network) {
 
 /* ---- the graded P sheet, L = 2, origin 0 ---- */
 static const double PL = 2;
-/* phi, gradient and (diagonal) Hessian, written from SPEC's definition
+/* phi, gradient and (diagonal) Hessian, written from the contract's definition
  * X = 2 pi / L (x - L/2), phi = cos X + cos Y + cos Z */
 static double p_phi(const double x[3], double g[3], double hd[3]) {
   double k = 2 * PI / PL, v = 0;

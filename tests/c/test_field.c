@@ -21,7 +21,7 @@ static void gr1(const gr_field *f, double x, double y, double z, double g[3]) {
   if (gr_field_grad(f, 1, &x, &y, &z, g, g + 1, g + 2, &e)) printf("    grad failed: %s\n", e.msg);
 }
 
-/* phi written out with libm for each surface at X, Y, Z (SPEC.md s.2). */
+/* phi written out with libm for each surface at X, Y, Z (doc/contract.md s.2). */
 static double ref_phi(int s, double X, double Y, double Z) {
   double cX = cos(X), cY = cos(Y), cZ = cos(Z), sX = sin(X), sY = sin(Y), sZ = sin(Z);
   double c2X = cos(2 * X), c2Y = cos(2 * Y), c2Z = cos(2 * Z);

@@ -37,7 +37,7 @@ local function points_of(layer, kind)
   return pts
 end
 
-t.test("layer count and heights follow SPEC s.4", function()
+t.test("layer count and heights follow contract s.4", function()
   local j = job { cells = { 1, 1, 1 } }
   t.eq(j:layers(), 50, "N = round(2 / 0.04)")
   local out = tmp .. "/heights.cli"
