@@ -313,9 +313,11 @@ function M.run(p, out)
   for k, v in pairs(p) do
     if type(v) ~= "function" and type(v) ~= "userdata" then st.parameters[k] = v end
   end
-  -- the values the job used, not "auto"
+  -- the values the job used, not "auto" or "" (default cache, default machine)
   st.parameters.beam_offset = st.effective.beam_offset
   st.parameters.slice_cell = st.effective.slice_cell
+  if kb == nil then st.parameters.kb = gradus.kb.default_dir() end
+  if p.machine == "" then st.parameters.machine = machine.name end
   gradus.write_stats(st)
   return st, kept
 end
