@@ -6,12 +6,13 @@
 --   warm   the same job again (every template from the knowledge base)
 --   direct kb=off (every voxel computed directly) on the first layers
 --   floor  writing as many bytes from memory (the time to write the output alone)
+local direct_layers = gradus.param("direct_layers", 5, { integer = true, min = 1, max = 1000,
+  help = "layers of the kb=off run" }) -- declared before the first action
 local exe = gradus.root .. "/build/gradus"
 local tmp = os.getenv("TMPDIR") or "/tmp"
 local dir = tmp .. "/gradus_bench_cube"
 os.execute("rm -rf '" .. dir .. "'")
 gradus.mkdir(dir)
-local direct_layers = gradus.param("direct_layers", 5)
 local common = "-D cells=20,20,20 -D cell=2 -D layer=0.04 -D hatch=0.05 -D format=binary " ..
   "-D 'thickness=0.06 + 0.002*z' -D res=40 -q"
 

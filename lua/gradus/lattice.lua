@@ -73,6 +73,13 @@ for _, d in ipairs(M.PARAMS) do DECL[d[1]] = d end
 -- reading a field that is not a parameter raises. defaults (optional)
 -- replaces declared defaults: lattice.params{cells = "4,4,2"}.
 function M.params(defaults)
+  for k in pairs(defaults or {}) do
+    if not DECL[k] then
+      local names = {}
+      for n in pairs(DECL) do names[#names + 1] = n end
+      error(("lattice.params: unknown parameter '%s' in the defaults%s"):format(tostring(k), strict.suggest(tostring(k), names)), 2)
+    end
+  end
   local values = {}
   for _, d in ipairs(M.PARAMS) do
     local def = d[2]

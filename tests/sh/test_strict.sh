@@ -45,6 +45,11 @@ out=$($G run "$d/r.lua" -o "$d/c.cli" 2>&1); rc=$?
 expect "p.hatc is an error at its line" "r.lua:3: assignment to unknown parameter 'hatc' .*\(did you mean 'hatch'\?\)" "$out"
 refused "p.hatc" "$d/c.cli"
 
+printf 'local lattice = require "gradus.lattice"\nlocal p = lattice.params { hatc = 0.06 }\n' > "$d/r2.lua"
+out=$($G run "$d/r2.lua" 2>&1); rc=$?
+expect "a misspelled recipe default is an error" "r2.lua:2: lattice.params: unknown parameter 'hatc' in the defaults \(did you mean 'hatch'\?\)" "$out"
+[ $rc != 0 ] && pass "misspelled default: exit non-zero" || fail "misspelled default: exit non-zero" "rc=$rc"
+
 # 4. a -D the recipe overrides silently
 out=$($G run "$ROOT/recipes/paper_assembly.lua" -D cells=3,3,1 -D kb=off -o "$d/e.cli" 2>&1); rc=$?
 expect "-D of a parameter the recipe sets itself" "-D cells=3,3,1 has no effect: the recipe sets cells itself" "$out"
