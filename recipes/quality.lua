@@ -10,14 +10,14 @@
 --   thin     = thin-wall centre lines (slivers narrower than 2b): scans and length,
 --              not in dev (they follow a wall's middle, not the offset b)
 --   gradus run recipes/quality.lua [-D step=5] [-D surfaces=primitive,gyroid,diamond]
---     [-D layers=1] (one line per checked layer) [-D sheet_thickness=EXPR]
+--     [-D per_layer=true] (one line per checked layer) [-D sheet_thickness=EXPR]
 local lattice = require "gradus.lattice"
 local step = gradus.param("step", 5, { integer = true, min = 1, max = 50, help = "check every step-th layer" })
 local res = gradus.param("res", 40, { integer = true, min = 4, max = 400, help = "marching-cubes samples per cell edge" })
 local surfaces = gradus.param("surfaces", "primitive,gyroid,diamond", { help = "TPMS names, comma-separated" })
 local kinds = gradus.param("kinds", "sheet,network", { help = "sheet and/or network" })
 local modes = gradus.param("modes", "exact,mesh", { help = "distance modes: exact and/or mesh" })
-local per_layer = tonumber(gradus.param("layers", 0, { integer = true, min = 0, max = 1, help = "1: one line per checked layer" })) == 1
+local per_layer = gradus.param("per_layer", false, { help = "one line per checked layer" })
 local out = gradus.param("out", "", { help = "YAML file for the table (empty: none)" })
 local d, t, b, L = 0.05, 0.04, 0.025, 2.0
 -- sheets: the paper's eq. (8), graded inside each cell (w wraps at the cell's

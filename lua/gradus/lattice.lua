@@ -325,6 +325,7 @@ function M.run(p, out)
   st.parameters.slice_cell = st.effective.slice_cell
   if kb == nil then st.parameters.kb = gradus.kb.default_dir() end
   if p.machine == "" then st.parameters.machine = machine.name end
+  st.parameters.layers = ("%d:%d"):format(first, last)
   gradus.write_stats(st)
   return st, kept
 end

@@ -43,6 +43,7 @@ end
 
 local function fmt(v)
   if type(v) == "number" then return v ~= v and "nan" or ("%.6g"):format(v) end
+  if v == "" then return '""' end
   if type(v) == "table" then
     local s = {}
     for i, x in ipairs(v) do s[i] = fmt(x) end

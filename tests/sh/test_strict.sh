@@ -136,6 +136,7 @@ expect "effective beam_offset (hatch/2), not a sentinel" "^  beam_offset: 0.025$
 expect "effective slice_cell, not a sentinel" "^  slice_cell: 0.025$" "$s1"
 printf '%s' "$s1" | grep -qE -- "-1.0|auto" && fail "no sentinels in the stats" "$(printf '%s' "$s1" | grep -E -- '-1.0|auto')" || pass "no sentinels in the stats"
 expect "default machine named in the stats" "^  machine: 1-laser default$" "$s1"
+expect "layer range used in the stats" "^  layers: 1:2$" "$s1"
 expect "nothing reused: reuse_ratio 0" "reuse_ratio: 0.0" "$s1"
 expect "all reused: reuse_ratio 1" "reuse_ratio: 1.0" "$s2"
 expect "reused counts agree" "reused: 1" "$s2"
