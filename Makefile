@@ -70,6 +70,7 @@ demo: deps
 	@$(MAKE) --no-print-directory demo-run
 demo-run: all
 	./build/gradus run recipes/demo.lua -o out/demo.cli --stats out/demo.yaml
+	./build/gradus view out/demo.cli -o out/demo.html
 
 bench: all
 	@bash bench/run.sh

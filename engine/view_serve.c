@@ -92,6 +92,14 @@ int gr_view_serve(const gr_view_index *ix, const gr_view_serve_opts *o, gr_err *
   sigaddset(&stop, SIGINT);
   sigaddset(&stop, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &stop, &old);
+  /* a shell starts background jobs with SIGINT ignored, and an ignored
+   * signal never reaches sigwait: default actions while serving (blocked,
+   * so they cannot kill), the old ones restored afterwards */
+  struct sigaction dfl, old_int, old_term;
+  memset(&dfl, 0, sizeof dfl);
+  dfl.sa_handler = SIG_DFL;
+  sigaction(SIGINT, &dfl, &old_int);
+  sigaction(SIGTERM, &dfl, &old_term);
   struct MHD_Daemon *d = MHD_start_daemon(MHD_USE_INTERNAL_POLLING_THREAD, 0, NULL, NULL, on_request, &s,
                                           MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&a, MHD_OPTION_END);
   int rc = GR_OK;
@@ -108,6 +116,8 @@ int gr_view_serve(const gr_view_index *ix, const gr_view_serve_opts *o, gr_err *
     }
     MHD_stop_daemon(d);
   }
+  sigaction(SIGINT, &old_int, NULL);
+  sigaction(SIGTERM, &old_term, NULL);
   pthread_sigmask(SIG_SETMASK, &old, NULL);
   return rc;
 }
