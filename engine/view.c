@@ -22,11 +22,11 @@ static int add_layer(gr_view_index *ix, size_t at, int line, double z, gr_err *e
   return GR_OK;
 }
 
-/* Give back the pages already scanned (every 64 MiB), so that indexing a
+/* Give back the pages already scanned (every 16 MiB), so that indexing a
  * file of many gigabytes keeps a small resident set. */
 static void release(const unsigned char *base, size_t *done, size_t pos) {
   size_t pg = (size_t)sysconf(_SC_PAGESIZE), upto = pos / pg * pg;
-  if (upto - *done < ((size_t)64 << 20)) return;
+  if (upto - *done < ((size_t)16 << 20)) return;
   madvise((void *)(base + *done), upto - *done, MADV_DONTNEED);
   *done = upto;
 }
