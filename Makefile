@@ -1,7 +1,8 @@
 # Gradus build. `make` builds build/gradus and build/gradus.so; `make test`
 # and `make demo` first install missing Debian packages (as root).
-PKGS      := lua5.4 yaml-0.1 readline libpng
-DEB_PKGS  := gcc make pkg-config liblua5.4-dev lua5.4 libyaml-dev libreadline-dev libpng-dev
+PKGS      := lua5.4 yaml-0.1 readline libpng libmicrohttpd
+DEB_PKGS  := gcc make pkg-config liblua5.4-dev lua5.4 libyaml-dev libreadline-dev libpng-dev \
+             libmicrohttpd-dev chromium curl
 CC        ?= cc
 CSTD      := -std=c11 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE
 WARN      := -Wall -Wextra
@@ -69,6 +70,7 @@ demo: deps
 	@$(MAKE) --no-print-directory demo-run
 demo-run: all
 	./build/gradus run recipes/demo.lua -o out/demo.cli --stats out/demo.yaml
+	./build/gradus view out/demo.cli -o out/demo.html
 
 bench: all
 	@bash bench/run.sh

@@ -71,5 +71,6 @@ int gr_open_hatch(lua_State *L);    /* gradus.hatch.*, layer methods, verify */
 int gr_open_io(lua_State *L);       /* gradus.cli.*, gradus.svg.*, gradus.png.* */
 int gr_open_yaml(lua_State *L);     /* gradus.yaml.* */
 int gr_open_place(lua_State *L);    /* gradus.place.*, gradus.kb.* */
+int gr_open_view(lua_State *L);     /* gradus.view.* (bind_view.c) */
 
 #endif

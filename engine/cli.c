@@ -270,14 +270,15 @@ static int layer_block(gr_layer *l, int shape, int id, int dir, const double *xy
   return gr_layer_add(l, shape, kind, laser, dir, xy, n);
 }
 
-static int read_ascii(const char *path, const char *t, size_t len, size_t pos, gr_cli_header *h,
+static int read_ascii(const char *path, const char *t, size_t len, size_t pos, int line0, gr_cli_header *h,
                       gr_cli_layer_fn fn, void *ud, gr_err *e) {
   gr_layer *l = gr_layer_new(0);
   double *xy = NULL;
   char *s = NULL; /* the current line, NUL-terminated (the mapped file is not) */
   size_t cap = 0, scap = 0, dropped = 0;
   int line = 1, have = 0, rc = GR_OK;
-  for (size_t i = 0; i < pos; i++) if (t[i] == '\n') line++;
+  if (line0 > 0) line = line0;
+  else for (size_t i = 0; i < pos; i++) if (t[i] == '\n') line++;
   while (pos < len && rc == GR_OK) {
     const char *nl = memchr(t + pos, '\n', len - pos);
     size_t end = nl ? (size_t)(nl - t) : len, n = end - pos;
@@ -377,6 +378,11 @@ static int read_binary(const char *path, const unsigned char *t, size_t len, siz
 /* The file is mapped, not read into memory, so that a multi-gigabyte CLI
  * costs page cache, not heap; layers are handed to fn one at a time. */
 int gr_cli_read(const char *path, gr_cli_header *h, gr_cli_layer_fn fn, void *ud, gr_err *e) {
+  return gr_cli_read_from(path, 0, 0, h, fn, ud, e);
+}
+
+int gr_cli_read_from(const char *path, size_t from, int from_line, gr_cli_header *h, gr_cli_layer_fn fn, void *ud,
+                     gr_err *e) {
   FILE *f = fopen(path, "rb");
   if (!f) return gr_fail(e, GR_EIO, "cannot read %s: %s", path, strerror(errno));
   struct stat stt;
@@ -418,14 +424,19 @@ int gr_cli_read(const char *path, gr_cli_header *h, gr_cli_layer_fn fn, void *ud
   }
   h->binary = binary;
   size_t pos = (size_t)(he - t) + 11;
+  int at = from > pos && from < len;
+  if (at) pos = from;
   if (binary) {
     rc = read_binary(path, (const unsigned char *)t, len, pos, h, fn, ud, e);
   } else {
-    const char *g = memmem(t + pos, len - pos, "$$GEOMETRYSTART", 15);
-    if (!g) { rc = gr_fail(e, GR_EPARSE, "%s: no $$GEOMETRYSTART", path); goto done; }
-    pos = (size_t)(g - t);
-    while (pos < len && t[pos] != '\n') pos++;
-    rc = read_ascii(path, t, len, pos + 1, h, fn, ud, e);
+    if (!at) {
+      const char *g = memmem(t + pos, len - pos, "$$GEOMETRYSTART", 15);
+      if (!g) { rc = gr_fail(e, GR_EPARSE, "%s: no $$GEOMETRYSTART", path); goto done; }
+      pos = (size_t)(g - t);
+      while (pos < len && t[pos] != '\n') pos++;
+      pos++;
+    }
+    rc = read_ascii(path, t, len, pos, at ? from_line : 0, h, fn, ud, e);
   }
 done:
   if (map) munmap(map, len);

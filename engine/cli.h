@@ -27,5 +27,11 @@ int gr_cli_close(gr_cli_writer *w, int commit, gr_err *e);
  * Errors name the file and the line (ASCII) or byte offset (binary). */
 typedef int (*gr_cli_layer_fn)(void *ud, const gr_layer *l, gr_err *e);
 int gr_cli_read(const char *path, gr_cli_header *h, gr_cli_layer_fn fn, void *ud, gr_err *e);
+/* The same, with the geometry taken from byte `from` on (the start of a layer
+ * command or $$LAYER line, found by the caller; ASCII: `line` is its line
+ * number, used in messages). from = 0 reads the whole file. fn may return
+ * any non-zero code to stop early; that code is returned. */
+int gr_cli_read_from(const char *path, size_t from, int line, gr_cli_header *h, gr_cli_layer_fn fn, void *ud,
+                     gr_err *e);
 
 #endif

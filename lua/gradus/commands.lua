@@ -21,6 +21,9 @@ function M.cli(args)
   return 0
 end
 
+--- gradus view FILE.cli [-o FILE.html] | --serve [--port N]: see gradus.view.
+function M.view(args) return require("gradus.view").main(args) end
+
 local KB_USAGE = "usage: gradus kb list|verify [DIR] | show KEY [DIR] | prune [--older-than DAYS] [DIR]" ..
   " (DIR also as --dir DIR; default: the user's cache)"
 

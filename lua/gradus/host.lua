@@ -8,6 +8,7 @@ usage: gradus run RECIPE [-D name=value]... [-o OUTPUT] [--stats FILE] [-q] [--a
        gradus run RECIPE --help    the recipe's parameters: defaults, units, ranges
        gradus sweep RECIPE -D name=v1,v2,... -D other=a:b:step [-j N] [-o DIR]
        gradus cli info FILE        layers, bounds, counts and lengths of a CLI file
+       gradus view FILE [-o HTML]  the layers in a browser page (--serve [--port N]: over HTTP)
        gradus kb list|show KEY|verify|prune [--dir DIR]
        gradus                      interactive Lua prompt with gradus loaded
        gradus --version | help
