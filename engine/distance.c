@@ -7,184 +7,6 @@
 #include "expr.h"
 #include "mc.h"
 
-/* ---- BVH ---- */
-typedef struct bnode {
-  double lo[3], hi[3];
-  int left;   /* child index, or -1 for a leaf */
-  int right;
-  int first, count; /* leaf: triangles tri[first .. first+count) */
-} bnode;
-
-struct gr_bvh {
-  const gr_mesh *m;
-  bnode *node;
-  int nnode;
-  uint32_t *tri;   /* triangle order */
-  double *cen;     /* centroids 3*nf */
-};
-
-static void tri_box(const gr_mesh *m, uint32_t t, double lo[3], double hi[3]) {
-  for (int a = 0; a < 3; a++) { lo[a] = INFINITY; hi[a] = -INFINITY; }
-  for (int k = 0; k < 3; k++) {
-    const double *v = m->v + 3 * m->f[3 * t + k];
-    for (int a = 0; a < 3; a++) { lo[a] = fmin(lo[a], v[a]); hi[a] = fmax(hi[a], v[a]); }
-  }
-}
-
-static int build(gr_bvh *b, int first, int count) {
-  int id = b->nnode++;
-  bnode *n = &b->node[id];
-  for (int a = 0; a < 3; a++) { n->lo[a] = INFINITY; n->hi[a] = -INFINITY; }
-  double clo[3] = {INFINITY, INFINITY, INFINITY}, chi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (int i = first; i < first + count; i++) {
-    double lo[3], hi[3];
-    tri_box(b->m, b->tri[i], lo, hi);
-    for (int a = 0; a < 3; a++) {
-      n->lo[a] = fmin(n->lo[a], lo[a]);
-      n->hi[a] = fmax(n->hi[a], hi[a]);
-      double c = b->cen[3 * b->tri[i] + a];
-      clo[a] = fmin(clo[a], c);
-      chi[a] = fmax(chi[a], c);
-    }
-  }
-  if (count <= 4) {
-    n->left = n->right = -1;
-    n->first = first;
-    n->count = count;
-    return id;
-  }
-  int ax = 0;
-  for (int a = 1; a < 3; a++) if (chi[a] - clo[a] > chi[ax] - clo[ax]) ax = a;
-  double mid = 0.5 * (clo[ax] + chi[ax]);
-  int i = first, j = first + count - 1;
-  while (i <= j) {
-    if (b->cen[3 * b->tri[i] + ax] < mid) i++;
-    else { uint32_t t = b->tri[i]; b->tri[i] = b->tri[j]; b->tri[j] = t; j--; }
-  }
-  int nl = i - first;
-  if (nl == 0 || nl == count) nl = count / 2; /* all centroids equal along ax */
-  int l = build(b, first, nl);
-  int r = build(b, first + nl, count - nl);
-  n = &b->node[id];
-  n->left = l;
-  n->right = r;
-  n->first = n->count = 0;
-  return id;
-}
-
-gr_bvh *gr_bvh_new(const gr_mesh *m, gr_err *e) {
-  if (!m || m->nf == 0) return gr_fail(e, GR_EARG, "distance: the mesh is empty"), NULL;
-  for (size_t i = 0; i < 3 * m->nv; i++)
-    if (!isfinite(m->v[i])) return gr_fail(e, GR_EGEOM, "distance: mesh vertex %zu is not finite", i / 3), NULL;
-  for (size_t i = 0; i < 3 * m->nf; i++)
-    if (m->f[i] >= m->nv) return gr_fail(e, GR_EGEOM, "distance: face %zu refers to missing vertex %u", i / 3, m->f[i]), NULL;
-  gr_bvh *b = calloc(1, sizeof *b);
-  if (!b) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
-  b->m = m;
-  b->node = malloc(2 * m->nf * sizeof *b->node);
-  b->tri = malloc(m->nf * sizeof *b->tri);
-  b->cen = malloc(3 * m->nf * sizeof *b->cen);
-  if (!b->node || !b->tri || !b->cen) { gr_bvh_free(b); return gr_fail(e, GR_EMEM, "out of memory for BVH"), NULL; }
-  for (size_t t = 0; t < m->nf; t++) {
-    b->tri[t] = (uint32_t)t;
-    for (int a = 0; a < 3; a++)
-      b->cen[3 * t + a] = (m->v[3 * m->f[3 * t] + a] + m->v[3 * m->f[3 * t + 1] + a] + m->v[3 * m->f[3 * t + 2] + a]) / 3;
-  }
-  build(b, 0, (int)m->nf);
-  return b;
-}
-
-void gr_bvh_free(gr_bvh *b) {
-  if (!b) return;
-  free(b->node);
-  free(b->tri);
-  free(b->cen);
-  free(b);
-}
-
-static double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-
-/* Closest point on a triangle by its Voronoi regions (vertex, edge, face). */
-void gr_closest_on_triangle(const double p[3], const double a[3], const double b[3],
-                            const double c[3], double q[3]) {
-  double ab[3], ac[3], ap[3];
-  for (int i = 0; i < 3; i++) { ab[i] = b[i] - a[i]; ac[i] = c[i] - a[i]; ap[i] = p[i] - a[i]; }
-  double d1 = dot3(ab, ap), d2 = dot3(ac, ap);
-  if (d1 <= 0 && d2 <= 0) { memcpy(q, a, 3 * sizeof *q); return; }
-  double bp[3];
-  for (int i = 0; i < 3; i++) bp[i] = p[i] - b[i];
-  double d3 = dot3(ab, bp), d4 = dot3(ac, bp);
-  if (d3 >= 0 && d4 <= d3) { memcpy(q, b, 3 * sizeof *q); return; }
-  double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
-    double v = d1 / (d1 - d3);
-    for (int i = 0; i < 3; i++) q[i] = a[i] + v * ab[i];
-    return;
-  }
-  double cp[3];
-  for (int i = 0; i < 3; i++) cp[i] = p[i] - c[i];
-  double d5 = dot3(ab, cp), d6 = dot3(ac, cp);
-  if (d6 >= 0 && d5 <= d6) { memcpy(q, c, 3 * sizeof *q); return; }
-  double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
-    double w = d2 / (d2 - d6);
-    for (int i = 0; i < 3; i++) q[i] = a[i] + w * ac[i];
-    return;
-  }
-  double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
-    double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-    for (int i = 0; i < 3; i++) q[i] = b[i] + w * (c[i] - b[i]);
-    return;
-  }
-  double den = va + vb + vc;
-  if (!(fabs(den) > 0)) { memcpy(q, a, 3 * sizeof *q); return; } /* degenerate */
-  double v = vb / den, w = vc / den;
-  for (int i = 0; i < 3; i++) q[i] = a[i] + ab[i] * v + ac[i] * w;
-}
-
-static double box_d2(const bnode *n, const double p[3]) {
-  double s = 0;
-  for (int a = 0; a < 3; a++) {
-    double d = p[a] < n->lo[a] ? n->lo[a] - p[a] : (p[a] > n->hi[a] ? p[a] - n->hi[a] : 0);
-    s += d * d;
-  }
-  return s;
-}
-
-int gr_bvh_closest(const gr_bvh *b, const double p[3], double maxdist, gr_hit *h) {
-  double best = isfinite(maxdist) ? maxdist * maxdist : INFINITY;
-  h->tri = -1;
-  h->dist = INFINITY;
-  int stack[128], sp = 0;
-  stack[sp++] = 0;
-  const gr_mesh *m = b->m;
-  while (sp) {
-    const bnode *n = &b->node[stack[--sp]];
-    if (box_d2(n, p) > best) continue;
-    if (n->left < 0) {
-      for (int i = n->first; i < n->first + n->count; i++) {
-        uint32_t t = b->tri[i];
-        double q[3];
-        gr_closest_on_triangle(p, m->v + 3 * m->f[3 * t], m->v + 3 * m->f[3 * t + 1], m->v + 3 * m->f[3 * t + 2], q);
-        double d2 = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]);
-        if (d2 <= best) {
-          best = d2;
-          h->tri = t;
-          memcpy(h->q, q, sizeof h->q);
-        }
-      }
-      continue;
-    }
-    double dl = box_d2(&b->node[n->left], p), dr = box_d2(&b->node[n->right], p);
-    if (sp + 2 > 128) continue; /* cannot happen for balanced trees of < 2^60 triangles */
-    if (dl < dr) { stack[sp++] = n->right; stack[sp++] = n->left; }
-    else { stack[sp++] = n->left; stack[sp++] = n->right; }
-  }
-  if (h->tri >= 0) h->dist = sqrt(best);
-  return GR_OK;
-}
-
 /* ---- offset field ---- */
 gr_offset_opts gr_offset_defaults(void) {
   gr_offset_opts o;
@@ -287,9 +109,9 @@ static int exact_refine(const offset *f, const double p[3], double q[3]) {
     if (!(gn > 0)) return 0;
     double n[3] = {gx / gn, gy / gn, gz / gn};
     double r[3] = {p[0] - x[0], p[1] - x[1], p[2] - x[2]};
-    double rn = dot3(r, n);
+    double rn = gr_dot3(r, n);
     double t[3] = {r[0] - rn * n[0], r[1] - rn * n[1], r[2] - rn * n[2]};
-    double tl = sqrt(dot3(t, t));
+    double tl = sqrt(gr_dot3(t, t));
     for (int a = 0; a < 3; a++) x[a] += t[a];
     if (tl < 1e-12) break;
   }
@@ -335,7 +157,7 @@ static int exact_newton(const offset *f, const double p[3], double q[3]) {
   for (int it = 0; it < 20; it++) {
     double v, g[3];
     if (gr_field_eval_grad(f->phi, 1, &x[0], &x[1], &x[2], &v, &g[0], &g[1], &g[2], &e)) return 0;
-    double g2 = dot3(g, g);
+    double g2 = gr_dot3(g, g);
     if (!(g2 > 1e-300)) return 0;
     if (it == 0) lam = ((p[0] - x[0]) * g[0] + (p[1] - x[1]) * g[1] + (p[2] - x[2]) * g[2]) / g2;
     if (it == 0) /* the Hessian once: the start is near, so it barely changes */
@@ -620,6 +442,161 @@ const char *gr_offset_warning(const gr_field *f) {
   return o ? o->warning : "";
 }
 
+/* The thickness expressions of o compiled into f (errors name the option). */
+static int offset_compile(offset *f, const gr_offset_opts *o, gr_err *e) {
+  const char *vars[] = {"x", "y", "z", "u", "v", "w"};
+  const char *cn[] = {"L"};
+  double cv[] = {o->cell};
+  if (o->thickness_expr && !(f->t = gr_expr_compile(o->thickness_expr, 6, vars, 1, cn, cv, e))) {
+    char m[512];
+    snprintf(m, sizeof m, "%s", e->msg);
+    return gr_fail(e, GR_EARG, "bad option 'thickness' (%s)", m);
+  }
+  if (o->inside_expr && !(f->tin = gr_expr_compile(o->inside_expr, 6, vars, 1, cn, cv, e))) {
+    char m[512];
+    snprintf(m, sizeof m, "%s", e->msg);
+    return gr_fail(e, GR_EARG, "bad option 'inside' (%s)", m);
+  }
+  if (!o->thickness_expr && !f->tfield && !(o->thickness >= 0 && o->thickness <= o->cell / 2))
+    return gr_fail(e, GR_EARG, "bad option 'thickness' (must be in [0, L/2 = %g], got %g)", o->cell / 2, o->thickness);
+  return GR_OK;
+}
+
+/* The largest thickness, estimated from 8^3 samples over the box grown by
+ * the margin and half a cell (at most L/2). */
+static double offset_tmax_estimate(const offset *f, const gr_offset_opts *o) {
+  double tmax_est = f->tconst;
+  if (!(f->t || f->tin || f->tfield)) return tmax_est;
+  enum { S = 8 };
+  double sx[S * S * S], sy[S * S * S], sz[S * S * S], st[S * S * S];
+  int n = 0;
+  for (int a = 0; a < S; a++)
+    for (int b = 0; b < S; b++)
+      for (int c = 0; c < S; c++, n++) {
+        double m = o->margin + 0.5 * o->cell;
+        sx[n] = o->box_lo[0] - m + (o->box_hi[0] - o->box_lo[0] + 2 * m) * a / (S - 1);
+        sy[n] = o->box_lo[1] - m + (o->box_hi[1] - o->box_lo[1] + 2 * m) * b / (S - 1);
+        sz[n] = o->box_lo[2] - m + (o->box_hi[2] - o->box_lo[2] + 2 * m) * c / (S - 1);
+      }
+  tmax_est = 0;
+  for (int pass = 0; pass < 2; pass++) {
+    const gr_expr *x = pass ? f->tin : f->t;
+    if (!x && !(pass == 0 && f->tfield)) continue;
+    gr_err e2;
+    if (thick(f, x, (size_t)n, sx, sy, sz, st, &e2) == GR_OK) {
+      for (int q = 0; q < n; q++)
+        if (st[q] > tmax_est) tmax_est = st[q];
+    } else {
+      tmax_est = 0.5 * o->cell;
+    }
+  }
+  if (tmax_est > 0.5 * o->cell) tmax_est = 0.5 * o->cell;
+  return tmax_est;
+}
+
+/* H: shared with o->like (lk, shifted), given (o->mesh), or meshed by
+ * marching cubes over the box grown by reach; and its BVH. */
+static int offset_mesh(offset *f, const gr_offset_opts *o, const offset *lk, double reach, gr_err *e) {
+  if (lk) {
+    f->like = gr_field_ref(o->like);
+    f->h = lk->h;
+    f->bvh = lk->bvh;
+    for (int a = 0; a < 3; a++) f->shift[a] = lk->shift[a] + o->like_shift[a];
+  } else if (o->mesh) {
+    f->h = o->mesh;
+  } else {
+    double lo[3], hi[3];
+    int n[3];
+    for (int a = 0; a < 3; a++) {
+      lo[a] = o->box_lo[a] - reach;
+      hi[a] = o->box_hi[a] + reach;
+      if (!(hi[a] > lo[a])) return gr_fail(e, GR_EARG, "bad option 'box' (empty along axis %d)", a);
+      n[a] = (int)ceil((hi[a] - lo[a]) / o->cell * o->res) + 1;
+    }
+    f->own = gr_mc_field(o->surface, lo, hi, n, 1, e);
+    if (!f->own) return e->code ? e->code : GR_EMEM;
+    f->h = f->own;
+  }
+  if (!f->bvh && !(f->bvh = gr_bvh_new(f->h, e))) return e->code ? e->code : GR_EMEM;
+  return GR_OK;
+}
+
+/* H's vertices (shifted) into vx, vy, vz; a shared H may reach far beyond
+ * this field's box: only its part within reach counts. Returns the count. */
+static size_t offset_vertices(const offset *f, const gr_offset_opts *o, int shared, double reach, double *vx,
+                              double *vy, double *vz) {
+  size_t m = 0;
+  for (size_t i = 0; i < f->h->nv; i++) {
+    double p[3] = {f->h->v[3 * i] + f->shift[0], f->h->v[3 * i + 1] + f->shift[1], f->h->v[3 * i + 2] + f->shift[2]};
+    int in = 1;
+    for (int a = 0; a < 3 && shared; a++) in &= p[a] >= o->box_lo[a] - reach && p[a] <= o->box_hi[a] + reach;
+    if (!in) continue;
+    vx[m] = p[0]; vy[m] = p[1]; vz[m] = p[2];
+    m++;
+  }
+  return m;
+}
+
+/* The thickness over H's nv vertices into t (the inside thickness's last
+ * when given), validated to [0, L/2]; *maxt: the largest. */
+static int offset_check_thickness(offset *f, const gr_offset_opts *o, size_t nv, const double *vx, const double *vy,
+                                  const double *vz, double *t, double *maxt, gr_err *e) {
+  *maxt = f->tconst;
+  for (int pass = 0; pass < (f->tin ? 2 : 1) && (f->t || f->tin || f->tfield); pass++) {
+    const gr_expr *x = pass ? f->tin : f->t;
+    if (!x && !(pass == 0 && f->tfield)) continue;
+    if (thick(f, x, nv, vx, vy, vz, t, e)) {
+      char m[512];
+      snprintf(m, sizeof m, "%s", e->msg);
+      return gr_fail(e, e->code, "bad option '%s' (%s)", pass ? "inside" : "thickness", m);
+    }
+    if (pass == 0) *maxt = 0;
+    for (size_t i = 0; i < nv; i++) {
+      if (!(t[i] >= 0) || t[i] > o->cell / 2) {
+        int out = 0;
+        double pv[3] = {vx[i], vy[i], vz[i]};
+        for (int a = 0; a < 3; a++) out |= pv[a] < o->box_lo[a] || pv[a] > o->box_hi[a];
+        return gr_fail(e, GR_EARG, "bad option '%s' (must be in [0, L/2 = %g], got %g at x=%g, y=%g, z=%g%s)",
+                       pass ? "inside" : "thickness", o->cell / 2, t[i], vx[i], vy[i], vz[i],
+                       out ? ", outside the cell's box: the thickness is evaluated on the surface up to a margin beyond"
+                             " the part, so it must stay valid there too, e.g. clamp with min(max(z, z0), z1)" : "");
+      }
+      if (t[i] > *maxt) *maxt = t[i];
+    }
+  }
+  return GR_OK;
+}
+
+/* Touching offsets: from each vertex v of H, step along the normal to the
+ * offset surface (distance T(v)); if that point is as close to another part
+ * of H (one whose closest point is more than 2 T(v) from v), the offset
+ * sheets of the two parts meet there: f->warning. Sheets only. */
+static void offset_touch_warning(offset *f, const gr_offset_opts *o, int shared, size_t nv, const double *vx,
+                                 const double *vy, const double *vz, const double *t) {
+  if (f->kind != GR_OFFSET_SHEET) return;
+  for (size_t i = 0; i < nv && !f->warning[0]; i += 7) {
+    double tv = (f->t || f->tin || f->tfield) ? t[i] : f->tconst;
+    double v[3] = {vx[i], vy[i], vz[i]}, g[3];
+    int in = 1; /* a shared H: only this field's box */
+    for (int a = 0; a < 3 && shared; a++) in &= v[a] >= o->box_lo[a] && v[a] <= o->box_hi[a];
+    if (!in) continue;
+    gr_err e2;
+    if (gr_field_grad(f->phi, 1, &v[0], &v[1], &v[2], &g[0], &g[1], &g[2], &e2)) continue;
+    double gn = sqrt(gr_dot3(g, g));
+    if (!(gn > 0) || !(tv > 0)) continue;
+    for (int sgn = -1; sgn <= 1 && !f->warning[0]; sgn += 2) {
+      double p[3];
+      for (int a = 0; a < 3; a++) p[a] = v[a] + sgn * tv * g[a] / gn;
+      gr_hit h;
+      closest_h(f, p, 0.95 * tv, &h);
+      double dq = sqrt((h.q[0] - v[0]) * (h.q[0] - v[0]) + (h.q[1] - v[1]) * (h.q[1] - v[1]) + (h.q[2] - v[2]) * (h.q[2] - v[2]));
+      if (h.tri >= 0 && dq > tv && h.dist < 0.95 * tv)
+        snprintf(f->warning, sizeof f->warning,
+                 "thickness %.4g mm: offset sheets of neighbouring parts touch near x=%.4g, y=%.4g, z=%.4g", tv, p[0], p[1], p[2]);
+    }
+  }
+}
+
 gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   if (!o->surface) return gr_fail(e, GR_EARG, "bad option 'surface' (a field is needed)"), NULL;
   if (!(o->cell > 0)) return gr_fail(e, GR_EARG, "bad option 'cell' (must be > 0, got %g)", o->cell), NULL;
@@ -635,155 +612,25 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   f->tconst = o->thickness;
   f->tfield = (!o->thickness_expr && o->thickness_field) ? gr_field_ref(o->thickness_field) : NULL;
   f->lip = gr_field_lipschitz(o->surface);
-  const char *vars[] = {"x", "y", "z", "u", "v", "w"};
-  const char *cn[] = {"L"};
-  double cv[] = {o->cell};
-  if (o->thickness_expr && !(f->t = gr_expr_compile(o->thickness_expr, 6, vars, 1, cn, cv, e))) {
-    char m[512];
-    snprintf(m, sizeof m, "%s", e->msg);
-    gr_fail(e, GR_EARG, "bad option 'thickness' (%s)", m);
-    offset_free(f);
-    return NULL;
-  }
-  if (o->inside_expr && !(f->tin = gr_expr_compile(o->inside_expr, 6, vars, 1, cn, cv, e))) {
-    char m[512];
-    snprintf(m, sizeof m, "%s", e->msg);
-    gr_fail(e, GR_EARG, "bad option 'inside' (%s)", m);
-    offset_free(f);
-    return NULL;
-  }
-  if (!o->thickness_expr && !f->tfield && !(o->thickness >= 0 && o->thickness <= o->cell / 2))
-    return offset_free(f), gr_fail(e, GR_EARG, "bad option 'thickness' (must be in [0, L/2 = %g], got %g)", o->cell / 2, o->thickness), NULL;
+  if (offset_compile(f, o, e)) { offset_free(f); return NULL; }
   /* H over the box grown by a reach: margin + the largest thickness (from
    * samples over the grown box) + two mesh spacings */
-  double tmax_est = f->tconst;
-  if (f->t || f->tin || f->tfield) {
-    enum { S = 8 };
-    double sx[S * S * S], sy[S * S * S], sz[S * S * S], st[S * S * S];
-    int n = 0;
-    for (int a = 0; a < S; a++)
-      for (int b = 0; b < S; b++)
-        for (int c = 0; c < S; c++, n++) {
-          double m = o->margin + 0.5 * o->cell;
-          sx[n] = o->box_lo[0] - m + (o->box_hi[0] - o->box_lo[0] + 2 * m) * a / (S - 1);
-          sy[n] = o->box_lo[1] - m + (o->box_hi[1] - o->box_lo[1] + 2 * m) * b / (S - 1);
-          sz[n] = o->box_lo[2] - m + (o->box_hi[2] - o->box_lo[2] + 2 * m) * c / (S - 1);
-        }
-    tmax_est = 0;
-    for (int pass = 0; pass < 2; pass++) {
-      const gr_expr *x = pass ? f->tin : f->t;
-      if (!x && !(pass == 0 && f->tfield)) continue;
-      gr_err e2;
-      if (thick(f, x, (size_t)n, sx, sy, sz, st, &e2) == GR_OK) {
-        for (int q = 0; q < n; q++)
-          if (st[q] > tmax_est) tmax_est = st[q];
-      } else {
-        tmax_est = 0.5 * o->cell;
-      }
-    }
-    if (tmax_est > 0.5 * o->cell) tmax_est = 0.5 * o->cell;
-  }
-  double reach = o->margin + 1.5 * tmax_est + 3 * o->cell / o->res;
+  double reach = o->margin + 1.5 * offset_tmax_estimate(f, o) + 3 * o->cell / o->res;
   const offset *lk = o->like ? gr_field_callback_data(o->like, offset_eval) : NULL;
   if (o->like && !lk) { offset_free(f); return gr_fail(e, GR_EARG, "bad option 'like' (an offset field is needed)"), NULL; }
-  if (lk) {
-    f->like = gr_field_ref(o->like);
-    f->h = lk->h;
-    f->bvh = lk->bvh;
-    for (int a = 0; a < 3; a++) f->shift[a] = lk->shift[a] + o->like_shift[a];
-  } else if (o->mesh) {
-    f->h = o->mesh;
-  } else {
-    double lo[3], hi[3];
-    int n[3];
-    for (int a = 0; a < 3; a++) {
-      lo[a] = o->box_lo[a] - reach;
-      hi[a] = o->box_hi[a] + reach;
-      if (!(hi[a] > lo[a])) {
-        offset_free(f);
-        return gr_fail(e, GR_EARG, "bad option 'box' (empty along axis %d)", a), NULL;
-      }
-      n[a] = (int)ceil((hi[a] - lo[a]) / o->cell * o->res) + 1;
-    }
-    f->own = gr_mc_field(o->surface, lo, hi, n, 1, e);
-    if (!f->own) { offset_free(f); return NULL; }
-    f->h = f->own;
-  }
-  if (!f->bvh && !(f->bvh = gr_bvh_new(f->h, e))) { offset_free(f); return NULL; }
+  if (offset_mesh(f, o, lk, reach, e)) { offset_free(f); return NULL; }
   /* thickness over H's vertices: validation and the narrow band */
   size_t nv = f->h->nv;
   double *buf = malloc((4 * nv + 1) * sizeof *buf);
   if (!buf) { offset_free(f); return gr_fail(e, GR_EMEM, "out of memory"), NULL; }
-  double *vx = buf, *vy = buf + nv, *vz = buf + 2 * nv, *t = buf + 3 * nv;
-  {
-    /* a shared H may reach far beyond this field's box: only its part within reach counts */
-    size_t m = 0;
-    for (size_t i = 0; i < nv; i++) {
-      double p[3] = {f->h->v[3 * i] + f->shift[0], f->h->v[3 * i + 1] + f->shift[1], f->h->v[3 * i + 2] + f->shift[2]};
-      int in = 1;
-      for (int a = 0; a < 3 && lk; a++) in &= p[a] >= o->box_lo[a] - reach && p[a] <= o->box_hi[a] + reach;
-      if (!in) continue;
-      vx[m] = p[0]; vy[m] = p[1]; vz[m] = p[2];
-      m++;
-    }
-    nv = m;
+  double *vx = buf, *vy = buf + nv, *vz = buf + 2 * nv, *t = buf + 3 * nv, maxt;
+  nv = offset_vertices(f, o, lk != NULL, reach, vx, vy, vz);
+  if (offset_check_thickness(f, o, nv, vx, vy, vz, t, &maxt, e)) {
+    free(buf);
+    offset_free(f);
+    return NULL;
   }
-  double maxt = f->tconst;
-  for (int pass = 0; pass < (f->tin ? 2 : 1) && (f->t || f->tin || f->tfield); pass++) {
-    const gr_expr *x = pass ? f->tin : f->t;
-    if (!x && !(pass == 0 && f->tfield)) continue;
-    if (thick(f, x, nv, vx, vy, vz, t, e)) {
-      char m[512];
-      snprintf(m, sizeof m, "%s", e->msg);
-      gr_fail(e, e->code, "bad option '%s' (%s)", pass ? "inside" : "thickness", m);
-      free(buf);
-      offset_free(f);
-      return NULL;
-    }
-    if (pass == 0) maxt = 0;
-    for (size_t i = 0; i < nv; i++) {
-      if (!(t[i] >= 0) || t[i] > o->cell / 2) {
-        int out = 0;
-        double pv[3] = {vx[i], vy[i], vz[i]};
-        for (int a = 0; a < 3; a++) out |= pv[a] < o->box_lo[a] || pv[a] > o->box_hi[a];
-        gr_fail(e, GR_EARG, "bad option '%s' (must be in [0, L/2 = %g], got %g at x=%g, y=%g, z=%g%s)",
-                pass ? "inside" : "thickness", o->cell / 2, t[i], vx[i], vy[i], vz[i],
-                out ? ", outside the cell's box: the thickness is evaluated on the surface up to a margin beyond"
-                      " the part, so it must stay valid there too, e.g. clamp with min(max(z, z0), z1)" : "");
-        free(buf);
-        offset_free(f);
-        return NULL;
-      }
-      if (t[i] > maxt) maxt = t[i];
-    }
-  }
-  /* Touching offsets: from each vertex v of H, step along the normal to the
-   * offset surface (distance T(v)); if that point is as close to another part
-   * of H (one whose closest point is more than 2 T(v) from v), the offset
-   * sheets of the two parts meet there. Sheets only. */
-  if (f->kind == GR_OFFSET_SHEET) {
-    for (size_t i = 0; i < nv && !f->warning[0]; i += 7) {
-      double tv = (f->t || f->tin || f->tfield) ? t[i] : f->tconst;
-      double v[3] = {vx[i], vy[i], vz[i]}, g[3];
-      int in = 1; /* a shared H: only this field's box */
-      for (int a = 0; a < 3 && lk; a++) in &= v[a] >= o->box_lo[a] && v[a] <= o->box_hi[a];
-      if (!in) continue;
-      gr_err e2;
-      if (gr_field_grad(f->phi, 1, &v[0], &v[1], &v[2], &g[0], &g[1], &g[2], &e2)) continue;
-      double gn = sqrt(dot3(g, g));
-      if (!(gn > 0) || !(tv > 0)) continue;
-      for (int sgn = -1; sgn <= 1 && !f->warning[0]; sgn += 2) {
-        double p[3];
-        for (int a = 0; a < 3; a++) p[a] = v[a] + sgn * tv * g[a] / gn;
-        gr_hit h;
-        closest_h(f, p, 0.95 * tv, &h);
-        double dq = sqrt((h.q[0] - v[0]) * (h.q[0] - v[0]) + (h.q[1] - v[1]) * (h.q[1] - v[1]) + (h.q[2] - v[2]) * (h.q[2] - v[2]));
-        if (h.tri >= 0 && dq > tv && h.dist < 0.95 * tv)
-          snprintf(f->warning, sizeof f->warning,
-                   "thickness %.4g mm: offset sheets of neighbouring parts touch near x=%.4g, y=%.4g, z=%.4g", tv, p[0], p[1], p[2]);
-      }
-    }
-  }
+  offset_touch_warning(f, o, lk != NULL, nv, vx, vy, vz, t);
   free(buf);
   f->tmax = maxt;
   f->herr = 0.5 * o->cell / o->res;

@@ -1,5 +1,5 @@
-/* distance.h: closest points on triangle meshes (a BVH) and the graded
- * offset field of the paper's section 3.3 (doc/contract.md s.3):
+/* distance.h: the graded offset field of the paper's section 3.3
+ * (doc/contract.md s.3), over closest points on H (bvh.h):
  *   sheet:   g(p) = d(p) - T(q(p))      network: g(p) = sd(p) - T(q(p))
  * q(p) the closest point of H (the marching-cubes mesh of phi = 0), d its
  * distance, sd = +d where phi > 0 and -d elsewhere, T the graded
@@ -9,23 +9,8 @@
 #ifndef GR_DISTANCE_H
 #define GR_DISTANCE_H
 #include "field.h"
+#include "bvh.h"
 #include "mesh.h"
-
-typedef struct gr_bvh gr_bvh;
-/* Build over m (which must outlive the BVH). Empty meshes and NaN vertices
- * are GR_EARG/GR_EGEOM errors naming the vertex. */
-gr_bvh *gr_bvh_new(const gr_mesh *m, gr_err *e);
-void gr_bvh_free(gr_bvh *b);
-typedef struct gr_hit {
-  double q[3];   /* closest point, mm */
-  double dist;   /* unsigned distance, mm */
-  long tri;      /* triangle index, -1 when nothing within the cut-off */
-} gr_hit;
-/* Closest point of the mesh to p within maxdist (INFINITY: no cut-off). */
-int gr_bvh_closest(const gr_bvh *b, const double p[3], double maxdist, gr_hit *h);
-/* Exact closest point of triangle abc to p. */
-void gr_closest_on_triangle(const double p[3], const double a[3], const double b[3],
-                            const double c[3], double q[3]);
 
 enum { GR_OFFSET_SHEET = 0, GR_OFFSET_NETWORK = 1 };
 enum { GR_DIST_MESH = 0, GR_DIST_EXACT = 1 };

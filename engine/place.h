@@ -146,5 +146,6 @@ int gr_job_classes(const gr_job *j);
 const char *gr_job_class_key(const gr_job *j, int c);
 const gr_job_opts *gr_job_options(const gr_job *j);
 double gr_job_angle(const gr_job *j, int g);   /* hatch angle of layer g, degrees */
+double gr_layer_angle(const gr_job_opts *o, int g); /* the same from the options */
 
 #endif

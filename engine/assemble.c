@@ -1,0 +1,467 @@
+/* assemble.c: a part layer from the templates, see assemble.h. */
+#include "assemble.h"
+#include <limits.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include "clip.h"
+#include "hatch.h"
+#include "lasers.h"
+
+struct gr_asm_seg {
+  double x0, y0, x1, y1; /* global, mm */
+  long line;             /* index on the global line family */
+  double s0, s1;         /* positions along the line direction (s0 < s1) */
+  int laser;
+  int voxel;             /* position in the row order */
+};
+typedef gr_asm_seg seg;
+
+
+void gr_asm_scratch_free(gr_asm_scratch *s) {
+  gr_rings_free(s->rg);
+  gr_layer_free(s->fl);
+  free(s->cbuf);
+  gr_layer_free(s->hl);
+  gr_layer_free(s->cont);
+  free(s->segs);
+  free(s->segs2);
+  free(s->bucket);
+  free(s->vtime);
+  free(s->vlas);
+  free(s->vseg0);
+  free(s->vseg1);
+  free(s->vcont0);
+  free(s->vcont1);
+  free(s->pts);
+  free(s->link);
+}
+
+int gr_asm_scratch_init(gr_asm_scratch *s, int nrow) {
+  memset(s, 0, sizeof *s);
+  s->rg = gr_rings_new();
+  s->hl = gr_layer_new(0);
+  s->cont = gr_layer_new(0);
+  s->fl = gr_layer_new(0);
+  s->vtime = calloc(nrow, sizeof *s->vtime);
+  s->vlas = calloc(nrow, sizeof *s->vlas);
+  s->vseg0 = calloc(nrow, sizeof(size_t));
+  s->vseg1 = calloc(nrow, sizeof(size_t));
+  s->vcont0 = calloc(nrow, sizeof(size_t));
+  s->vcont1 = calloc(nrow, sizeof(size_t));
+  if (!s->rg || !s->hl || !s->cont || !s->fl || !s->vtime || !s->vlas || !s->vseg0 || !s->vseg1 ||
+      !s->vcont0 || !s->vcont1)
+    return GR_EMEM;
+  return GR_OK;
+}
+
+static int seg_cmp(const void *a, const void *b) {
+  const seg *p = a, *q = b;
+  if (p->laser != q->laser) return p->laser < q->laser ? -1 : 1;
+  if (p->line != q->line) return p->line < q->line ? -1 : 1;
+  return (p->s0 > q->s0) - (p->s0 < q->s0);
+}
+
+/* Order the layer's segments as seg_cmp does, stably: a counting sort on
+ * (laser, line), then insertion sort by s0 within a line (a line crosses
+ * one row of voxels, so few segments share it). qsort when the lines are
+ * too sparse for buckets. */
+static int sort_segs(gr_asm_scratch *s, gr_err *e) {
+  size_t n = s->nseg;
+  if (n < 2) return GR_OK;
+  long lo = LONG_MAX, hi = LONG_MIN;
+  int lmax = 0;
+  for (size_t r = 0; r < n; r++) {
+    if (s->segs[r].line < lo) lo = s->segs[r].line;
+    if (s->segs[r].line > hi) hi = s->segs[r].line;
+    if (s->segs[r].laser > lmax) lmax = s->segs[r].laser;
+  }
+  size_t nl = (size_t)(hi - lo) + 1, nb = nl * (size_t)(lmax + 1);
+  if (hi - lo > 4 * (long)n + 4096 || nb > 8 * n + 65536) {
+    qsort(s->segs, n, sizeof *s->segs, seg_cmp);
+    return GR_OK;
+  }
+  if (gr_grow(&s->bucket, &s->capbucket, nb + 1, sizeof *s->bucket) ||
+      gr_grow(&s->segs2, &s->capseg2, n, sizeof *s->segs2))
+    return gr_fail(e, GR_EMEM, "out of memory");
+  size_t *c = s->bucket;
+  memset(c, 0, (nb + 1) * sizeof *c);
+  for (size_t r = 0; r < n; r++) c[(size_t)s->segs[r].laser * nl + (size_t)(s->segs[r].line - lo) + 1]++;
+  for (size_t b = 0; b < nb; b++) c[b + 1] += c[b];
+  for (size_t r = 0; r < n; r++) s->segs2[c[(size_t)s->segs[r].laser * nl + (size_t)(s->segs[r].line - lo)]++] = s->segs[r];
+  /* c[b] is now the end of bucket b */
+  for (size_t b = 0, a = 0; b < nb; a = c[b++])
+    for (size_t r = a + 1; r < c[b]; r++) {
+      seg x = s->segs2[r];
+      size_t q = r;
+      while (q > a && s->segs2[q - 1].s0 > x.s0) { s->segs2[q] = s->segs2[q - 1]; q--; }
+      s->segs2[q] = x;
+    }
+  seg *t = s->segs;
+  size_t tc = s->capseg;
+  s->segs = s->segs2;
+  s->capseg = s->capseg2;
+  s->segs2 = t;
+  s->capseg2 = tc;
+  return GR_OK;
+}
+
+
+/* Hatch one voxel: its template region translated to global coordinates,
+ * lines of the global family at angle a, clipped to the voxel square. */
+/* Sides of voxel v on the part's boundary (no lattice beyond): bits 1 x=0,
+ * 2 x=L, 4 y=0, 8 y=L; 0 when the job leaves cut sides open. */
+static int voxel_sides(const gr_job *j, int v) {
+  if (!j->o.faces) return 0;
+  int i, jj, k, nx = j->o.n[0], ny = j->o.n[1], m = 0;
+  gr_grid_ijk(&j->grid, v, &i, &jj, &k);
+  if (i == 0 || j->vcls[v - 1] < 0) m |= 1;
+  if (i == nx - 1 || j->vcls[v + 1] < 0) m |= 2;
+  if (jj == 0 || j->vcls[v - nx] < 0) m |= 4;
+  if (jj == ny - 1 || j->vcls[v + nx] < 0) m |= 8;
+  (void)ny;
+  return m;
+}
+
+/* The voxel square [0, L]^2 with the sides in mask moved in by c (mm). */
+static void side_box(const gr_job *j, int mask, double c, double lo[2], double hi[2]) {
+  double L = j->o.cell;
+  lo[0] = (mask & 1) ? c : 0;
+  hi[0] = (mask & 2) ? L - c : L;
+  lo[1] = (mask & 4) ? c : 0;
+  hi[1] = (mask & 8) ? L - c : L;
+}
+
+/* Offset of the hatch region from the section boundary (hatch.h), mm. */
+static double hatch_offset(const gr_job *j) {
+  double gap = gr_hatch_defaults().gap;
+  int n = j->o.contours;
+  return n == 0 ? j->o.beam_offset + gap : j->o.beam_offset + (n - 1) * j->o.hatch + gap;
+}
+
+/* Contours of boundary voxel tl (sides in mask): the template's cut by the
+ * sides moved in by b, plus the side segments; voxel-local, into s->fl. */
+static int boundary_contours(const gr_job *j, gr_asm_scratch *s, const gr_tlayer *tl, int mask) {
+  double lo[2], hi[2];
+  side_box(j, mask, j->o.beam_offset, lo, hi);
+  gr_layer_clear(s->fl, 0);
+  for (size_t b = 0; b < tl->paths->nb; b++) {
+    const gr_block *bk = &tl->paths->b[b];
+    if (gr_clip_poly(tl->paths->xy + 2 * bk->start, bk->n, bk->shape == GR_CLOSED, bk->kind, bk->dir, lo, hi, s->fl,
+                  &s->cbuf, &s->capcbuf))
+      return GR_EMEM;
+  }
+  for (size_t b = 0; tl->faces && b < tl->faces->nb; b++) {
+    const gr_block *bk = &tl->faces->b[b];
+    if (!((mask >> bk->laser) & 1)) continue;
+    if (gr_clip_poly(tl->faces->xy + 2 * bk->start, bk->n, 0, bk->kind, 2, lo, hi, s->fl, &s->cbuf, &s->capcbuf))
+      return GR_EMEM;
+  }
+  s->fl->thin_walls = tl->paths->thin_walls;
+  return GR_OK;
+}
+
+static int hatch_voxel(gr_job *j, gr_asm_scratch *s, const gr_tlayer *tl, const double o[3],
+                       double a, int slot, int mask, gr_err *e) {
+  if (tl->region->nrings == 0) return GR_OK;
+  if (gr_rings_copy(s->rg, tl->region)) return gr_fail(e, GR_EMEM, "out of memory");
+  gr_rings_translate(s->rg, o[0], o[1]);
+  gr_layer_clear(s->hl, 0);
+  gr_hatch_opts ho = gr_hatch_defaults();
+  ho.spacing = j->o.hatch;
+  ho.angle = a;
+  ho.pattern = GR_PARALLEL;
+  ho.alternate = 0;
+  ho.contours = 0;
+  if (gr_hatch_region(s->rg, &ho, s->hl, NULL, e)) return e->code;
+  double ca = cos(a * M_PI / 180), sa = sin(a * M_PI / 180);
+  double lo[2], hi[2];
+  side_box(j, mask, hatch_offset(j), lo, hi);
+  for (int k = 0; k < 2; k++) { lo[k] += o[k]; hi[k] += o[k]; }
+  for (size_t b = 0; b < s->hl->nb; b++) {
+    const gr_block *bk = &s->hl->b[b];
+    const double *p = s->hl->xy + 2 * bk->start;
+    for (size_t q = 0; q + 1 < bk->n; q += 2) {
+      double t0, t1, px = p[2 * q], py = p[2 * q + 1], qx = p[2 * q + 2], qy = p[2 * q + 3];
+      if (!gr_clip_seg(px, py, qx, qy, lo, hi, &t0, &t1)) continue;
+      double ax = px + t0 * (qx - px), ay = py + t0 * (qy - py);
+      double bx = px + t1 * (qx - px), by = py + t1 * (qy - py);
+      double sa0 = ax * ca + ay * sa, sb0 = bx * ca + by * sa;
+      if (fabs(sb0 - sa0) < 1e-9) continue;
+      if (gr_grow(&s->segs, &s->capseg, s->nseg + 1, sizeof *s->segs)) return gr_fail(e, GR_EMEM, "out of memory");
+      seg *sg = &s->segs[s->nseg++];
+      if (sb0 < sa0) { double tx = ax, ty = ay; ax = bx; ay = by; bx = tx; by = ty; double ts = sa0; sa0 = sb0; sb0 = ts; }
+      sg->x0 = ax; sg->y0 = ay; sg->x1 = bx; sg->y1 = by;
+      sg->s0 = sa0; sg->s1 = sb0;
+      sg->line = lround((-ax * sa + ay * ca) / j->o.hatch);
+      sg->laser = 0;
+      sg->voxel = slot;
+    }
+  }
+  return GR_OK;
+}
+
+static int triple_cmp(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+/* Join open contour pieces whose end meets another's start (within tol, same
+ * laser) into chains; closed chains become GR_CLOSED loops. Pieces come from
+ * s->cont blocks [b0, b1); output appended to `out`. */
+static int join_contours(gr_asm_scratch *s, size_t b0, size_t b1, double tol, gr_layer *out,
+                         const int *slot_laser, gr_err *e) {
+  gr_layer *c = s->cont;
+  size_t n = b1 - b0;
+  if (n == 0) return GR_OK;
+  if (gr_grow(&s->link, &s->caplink, 3 * n, sizeof *s->link)) return gr_fail(e, GR_EMEM, "out of memory");
+  long *next = s->link, *prev = s->link + n, *used = s->link + 2 * n;
+  for (size_t i = 0; i < n; i++) next[i] = prev[i] = -1, used[i] = 0;
+  /* sort open pieces by start x to find matches in O(n log n) */
+  size_t nopen = 0;
+  long *idx = malloc((n ? n : 1) * sizeof *idx);
+  if (!idx) return gr_fail(e, GR_EMEM, "out of memory");
+  for (size_t i = 0; i < n; i++)
+    if (c->b[b0 + i].shape == GR_OPEN) idx[nopen++] = (long)i;
+  /* insertion into a sorted array by start x (qsort with a context-free
+   * comparator needs the coordinates: copy them) */
+  double *sx = malloc((nopen ? nopen : 1) * 3 * sizeof *sx);
+  if (!sx) { free(idx); return gr_fail(e, GR_EMEM, "out of memory"); }
+  for (size_t q = 0; q < nopen; q++) {
+    const gr_block *bk = &c->b[b0 + idx[q]];
+    sx[3 * q] = c->xy[2 * bk->start];
+    sx[3 * q + 1] = c->xy[2 * bk->start + 1];
+    sx[3 * q + 2] = (double)idx[q];
+  }
+  qsort(sx, nopen, 3 * sizeof *sx, triple_cmp);
+  for (size_t q = 0; q < nopen; q++) {
+    long i = idx[q];
+    const gr_block *bk = &c->b[b0 + i];
+    double ex = c->xy[2 * (bk->start + bk->n - 1)], ey = c->xy[2 * (bk->start + bk->n - 1) + 1];
+    /* binary search the first start with x >= ex - tol */
+    size_t lo = 0, hi = nopen;
+    while (lo < hi) {
+      size_t mid = (lo + hi) / 2;
+      if (sx[3 * mid] < ex - tol) lo = mid + 1; else hi = mid;
+    }
+    long best = -1;
+    double bd = tol * tol;
+    for (size_t r = lo; r < nopen && sx[3 * r] <= ex + tol; r++) {
+      long cand = (long)sx[3 * r + 2];
+      if (cand == i || prev[cand] >= 0) continue;
+      if (slot_laser[c->b[b0 + cand].laser] != slot_laser[bk->laser]) continue;
+      if ((c->b[b0 + cand].dir == GR_DIR_THIN) != (bk->dir == GR_DIR_THIN)) continue;
+      double dx = sx[3 * r] - ex, dy = sx[3 * r + 1] - ey, d2 = dx * dx + dy * dy;
+      if (d2 <= bd) { bd = d2; best = cand; }
+    }
+    if (best >= 0) { next[i] = best; prev[best] = i; }
+  }
+  free(sx);
+  free(idx);
+  /* emit: closed blocks as they are; chains from heads, then cycles */
+  for (int pass = 0; pass < 2; pass++) {
+    for (size_t i = 0; i < n; i++) {
+      const gr_block *bk = &c->b[b0 + i];
+      if (used[i]) continue;
+      if (bk->shape != GR_OPEN) {
+        if (pass == 0) {
+          used[i] = 1;
+          if (gr_layer_add(out, bk->shape, bk->kind, slot_laser[bk->laser], bk->dir, c->xy + 2 * bk->start, bk->n))
+            return gr_fail(e, GR_EMEM, "out of memory");
+        }
+        continue;
+      }
+      if (pass == 0 && prev[i] >= 0) continue; /* not a head */
+      /* walk the chain */
+      size_t m = 0;
+      long q = (long)i;
+      int closed = 0;
+      while (q >= 0 && !used[q]) {
+        used[q] = 1;
+        const gr_block *pb = &c->b[b0 + q];
+        size_t skip = m > 0 ? 1 : 0; /* drop the shared joint point */
+        if (gr_grow(&s->pts, &s->cappts, m + pb->n, 2 * sizeof(double))) return gr_fail(e, GR_EMEM, "out of memory");
+        if (skip) { /* average the joint: both ends are within tol */
+          s->pts[2 * (m - 1)] = 0.5 * (s->pts[2 * (m - 1)] + c->xy[2 * pb->start]);
+          s->pts[2 * (m - 1) + 1] = 0.5 * (s->pts[2 * (m - 1) + 1] + c->xy[2 * pb->start + 1]);
+        }
+        memcpy(s->pts + 2 * m, c->xy + 2 * (pb->start + skip), (pb->n - skip) * 2 * sizeof(double));
+        m += pb->n - skip;
+        q = next[q];
+        if (q == (long)i) closed = 1;
+      }
+      if (closed && bk->dir == GR_DIR_THIN) { /* a thin-wall loop stays an open, tagged line */
+        if (gr_layer_add(out, GR_OPEN, bk->kind, slot_laser[bk->laser], GR_DIR_THIN, s->pts, m))
+          return gr_fail(e, GR_EMEM, "out of memory");
+      } else if (closed) {
+        s->pts[0] = 0.5 * (s->pts[0] + s->pts[2 * (m - 1)]);
+        s->pts[1] = 0.5 * (s->pts[1] + s->pts[2 * (m - 1) + 1]);
+        s->pts[2 * (m - 1)] = s->pts[0];
+        s->pts[2 * (m - 1) + 1] = s->pts[1];
+        double a = 0;
+        for (size_t k = 0; k + 1 < m; k++)
+          a += s->pts[2 * k] * s->pts[2 * k + 3] - s->pts[2 * k + 2] * s->pts[2 * k + 1];
+        if (gr_layer_add(out, GR_CLOSED, bk->kind, slot_laser[bk->laser], a > 0 ? 1 : 0, s->pts, m))
+          return gr_fail(e, GR_EMEM, "out of memory");
+      } else if (m >= 2) {
+        if (gr_layer_add(out, GR_OPEN, bk->kind, slot_laser[bk->laser], gr_clip_open_dir(bk->dir), s->pts, m))
+          return gr_fail(e, GR_EMEM, "out of memory");
+      }
+    }
+  }
+  return GR_OK;
+}
+
+/* The voxels of layer g's row (slots in sequence order): template layers
+ * translated into place, contours into s->cont (block.laser = slot), hatch
+ * segments into s->segs; the lasers assigned into s->vlas. */
+static int gather_voxels(gr_job *j, int g, gr_asm_scratch *s, gr_layer *out, gr_err *e) {
+  int k = gr_grid_layer_row(&j->grid, g);
+  int jl = g - gr_grid_row_first(&j->grid, k);
+  const int *vox = j->roworder + (size_t)k * j->rowlen;
+  int nslot = j->rowcount[k];
+  double a = gr_job_angle(j, g);
+  s->nseg = 0;
+  gr_layer_clear(s->cont, 0);
+  double *lc = s->vtime; /* reuse: contour length per slot, hatch length below */
+  double *lh = malloc((size_t)(nslot > 0 ? nslot : 1) * sizeof *lh);
+  if (!lh) return gr_fail(e, GR_EMEM, "out of memory");
+  int rc = GR_OK;
+  for (int q = 0; q < nslot && rc == GR_OK; q++) {
+    int v = vox[q];
+    const gr_tmpl *t = j->cls[j->vcls[v]].t;
+    lc[q] = lh[q] = 0;
+    s->vcont0[q] = s->cont->nb;
+    s->vseg0[q] = s->nseg;
+    if (!t || jl < t->j0 || jl >= t->j0 + t->nl) {
+      rc = gr_fail(e, GR_EARG, "internal: no template layer %d for voxel %d", jl, v);
+      break;
+    }
+    const gr_tlayer *tl = &t->l[jl - t->j0];
+    double o[3];
+    gr_grid_origin(&j->grid, v, o);
+    out->area += tl->area;
+    size_t nb0 = s->cont->nb;
+    int mask = voxel_sides(j, v);
+    if (mask && boundary_contours(j, s, tl, mask)) { rc = gr_fail(e, GR_EMEM, "out of memory"); break; }
+    if (gr_layer_append(s->cont, mask ? s->fl : tl->paths, o[0], o[1])) { rc = gr_fail(e, GR_EMEM, "out of memory"); break; }
+    for (size_t b = nb0; b < s->cont->nb; b++) {
+      s->cont->b[b].laser = q; /* slot, mapped to the laser later */
+      lc[q] += gr_block_length(s->cont, &s->cont->b[b]);
+    }
+    int i, jj, kk;
+    gr_grid_ijk(&j->grid, v, &i, &jj, &kk);
+    double av = a;
+    if (j->o.pattern == GR_PATTERN_ISLAND && ((i + jj) & 1)) av = fmod(a + 90, 360);
+    rc = hatch_voxel(j, s, tl, o, av, q, mask, e);
+    s->vcont1[q] = s->cont->nb;
+    s->vseg1[q] = s->nseg;
+    for (size_t r = s->vseg0[q]; r < s->nseg; r++) lh[q] += s->segs[r].s1 - s->segs[r].s0;
+  }
+  if (rc == GR_OK) rc = gr_lasers_assign(&j->m, &j->grid, j->vlaser, vox, nslot, lc, lh, s->vlas, e);
+  free(lh);
+  return rc;
+}
+
+/* Island mode: per island (voxel) in sequence order, contours and hatches unjoined. */
+static int emit_islands(const gr_job *j, gr_asm_scratch *s, int nslot, gr_layer *out, gr_err *e) {
+  int cf = j->o.contour_first;
+  for (int q = 0; q < nslot; q++) {
+    for (int pass = 0; pass < 2; pass++) {
+      int contours = (pass == 0) == (cf != 0);
+      if (contours) {
+        for (size_t b = s->vcont0[q]; b < s->vcont1[q]; b++) {
+          const gr_block *bk = &s->cont->b[b];
+          if (gr_layer_add(out, bk->shape, bk->kind, s->vlas[q], bk->dir, s->cont->xy + 2 * bk->start, bk->n))
+            return gr_fail(e, GR_EMEM, "out of memory");
+        }
+      } else {
+        long lastline = LONG_MIN;
+        int flip = 0;
+        for (size_t r = s->vseg0[q]; r < s->vseg1[q]; r++) {
+          const seg *sg = &s->segs[r];
+          if (sg->line != lastline) { flip = !flip; lastline = sg->line; }
+          int rev = j->o.alternate && flip;
+          if (gr_layer_add_segment(out, GR_HATCH, s->vlas[q], rev ? sg->x1 : sg->x0, rev ? sg->y1 : sg->y0,
+                                   rev ? sg->x0 : sg->x1, rev ? sg->y0 : sg->y1))
+            return gr_fail(e, GR_EMEM, "out of memory");
+        }
+      }
+    }
+  }
+  return GR_OK;
+}
+
+/* Continuous mode: hatches joined along their lines across voxels, into
+ * `hat` (vectors shorter than the minimum length dropped and counted). */
+static int join_hatches(gr_job *j, gr_asm_scratch *s, gr_layer *hat, gr_err *e) {
+  if (sort_segs(s, e)) return e->code;
+  size_t w = 0;
+  double tol = 1e-7;
+  for (size_t r = 0; r < s->nseg; r++) {
+    if (w > 0 && s->segs[w - 1].laser == s->segs[r].laser && s->segs[w - 1].line == s->segs[r].line &&
+        s->segs[r].s0 <= s->segs[w - 1].s1 + tol) {
+      if (s->segs[r].s1 > s->segs[w - 1].s1) {
+        s->segs[w - 1].s1 = s->segs[r].s1;
+        s->segs[w - 1].x1 = s->segs[r].x1;
+        s->segs[w - 1].y1 = s->segs[r].y1;
+      }
+    } else {
+      s->segs[w++] = s->segs[r];
+    }
+  }
+  s->nseg = w;
+  long lastline = LONG_MIN;
+  int flip = 0, lastlaser = -1;
+  for (size_t r = 0; r < s->nseg; r++) {
+    const seg *sg = &s->segs[r];
+    if (sg->s1 - sg->s0 < j->o.min_length) { __atomic_fetch_add(&j->st_dropped, 1, __ATOMIC_RELAXED); continue; }
+    if (sg->laser != lastlaser) { flip = 0; lastline = LONG_MIN; lastlaser = sg->laser; }
+    if (sg->line != lastline) { flip = !flip; lastline = sg->line; }
+    int rev = j->o.alternate && !flip;
+    if (gr_layer_add_segment(hat, GR_HATCH, sg->laser, rev ? sg->x1 : sg->x0, rev ? sg->y1 : sg->y0,
+                             rev ? sg->x0 : sg->x1, rev ? sg->y0 : sg->y1))
+      return gr_fail(e, GR_EMEM, "out of memory");
+  }
+  return GR_OK;
+}
+
+/* Continuous mode: hatches and contours joined across voxels; per laser,
+ * contours then hatches (or the reverse). */
+static int emit_continuous(gr_job *j, gr_asm_scratch *s, gr_layer *out, gr_err *e) {
+  int cf = j->o.contour_first;
+  gr_layer *hat = gr_layer_new(0);
+  if (!hat) return gr_fail(e, GR_EMEM, "out of memory");
+  int rc = join_hatches(j, s, hat, e);
+  if (rc) { gr_layer_free(hat); return rc; }
+  gr_layer *con = gr_layer_new(0);
+  if (!con) { gr_layer_free(hat); return gr_fail(e, GR_EMEM, "out of memory"); }
+  rc = join_contours(s, 0, s->cont->nb, j->o.hatch / 4, con, s->vlas, e);
+  for (int la = 0; la < j->m.n && rc == GR_OK; la++) {
+    for (int pass = 0; pass < 2 && rc == GR_OK; pass++) {
+      const gr_layer *src = ((pass == 0) == (cf != 0)) ? con : hat;
+      for (size_t b = 0; b < src->nb; b++) {
+        const gr_block *bk = &src->b[b];
+        if (bk->laser != la) continue;
+        if (gr_layer_add(out, bk->shape, bk->kind, la, bk->dir, src->xy + 2 * bk->start, bk->n)) {
+          rc = gr_fail(e, GR_EMEM, "out of memory");
+          break;
+        }
+      }
+    }
+  }
+  gr_layer_free(hat);
+  gr_layer_free(con);
+  return rc;
+}
+
+int gr_asm_layer(gr_job *j, int g, gr_asm_scratch *s, gr_layer *out, gr_err *e) {
+  gr_layer_clear(out, j->o.origin[2] + g * j->o.layer);
+  int rc = gather_voxels(j, g, s, out, e);
+  if (rc) return rc;
+  out->thin_walls = s->cont->thin_walls;
+  for (size_t r = 0; r < s->nseg; r++) s->segs[r].laser = s->vlas[s->segs[r].voxel];
+  if (j->o.pattern == GR_PATTERN_ISLAND)
+    return emit_islands(j, s, j->rowcount[gr_grid_layer_row(&j->grid, g)], out, e);
+  return emit_continuous(j, s, out, e);
+}

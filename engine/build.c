@@ -1,0 +1,364 @@
+/* build.c: building the templates of a set of classes, see build.h. */
+#include "build.h"
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include "distance.h"
+#include "pool.h"
+
+/* -domain - skin, negative inside the skin band's inner side. */
+typedef struct skin_ud { gr_field *d; double s; } skin_ud;
+static int skin_eval(void *ud, size_t n, const double *x, const double *y,
+                     const double *z, double *out, gr_err *e) {
+  skin_ud *k = ud;
+  if (gr_field_eval(k->d, n, x, y, z, out, e)) return e->code;
+  for (size_t i = 0; i < n; i++) out[i] = -out[i] - k->s;
+  return GR_OK;
+}
+static void skin_free(void *ud) {
+  skin_ud *k = ud;
+  gr_field_free(k->d);
+  free(k);
+}
+static gr_field *skin_field(gr_field *d, double s) {
+  skin_ud *k = malloc(sizeof *k);
+  if (!k) return NULL;
+  k->d = gr_field_ref(d);
+  k->s = s;
+  gr_field *f = gr_field_callback(skin_eval, NULL, k, skin_free, gr_field_threadsafe(d), "skin");
+  if (!f) skin_free(k);
+  return f;
+}
+
+/* The graded field of voxel v (offset field of its spec, with H meshed over
+ * the voxel grown by a margin), intersected with the domain when trimmed. */
+static gr_field *voxel_field(gr_job *j, int v, int trimmed, gr_field *like, const double shift[3],
+                             double extra, gr_err *e) {
+  const gr_spec *s = &j->specs[j->vspec[v]];
+  double o[3];
+  gr_grid_origin(&j->grid, v, o);
+  gr_field *phi = gr_field_tpms(gr_tpms_name(s->surface), j->o.cell, j->o.origin, s->level, e);
+  if (!phi) return NULL;
+  gr_offset_opts oo = gr_offset_defaults();
+  oo.surface = phi;
+  oo.cell = j->o.cell;
+  oo.like = like;
+  for (int a = 0; a < 3 && like; a++) oo.like_shift[a] = shift[a];
+  for (int a = 0; a < 3; a++) oo.origin[a] = j->o.origin[a];
+  for (int a = 0; a < 3; a++) oo.box_lo[a] = o[a];
+  for (int a = 0; a < 3; a++) oo.box_hi[a] = o[a] + j->o.cell;
+  oo.margin = j->o.beam_offset + (j->o.contours + 2) * j->o.hatch + 4 * j->o.slice_cell + extra;
+  oo.res = j->o.res;
+  oo.thickness_expr = j->specs[j->vspec[v]].thickness;
+  oo.inside_expr = s->inside[0] ? s->inside : NULL;
+  oo.kind = s->network ? GR_OFFSET_NETWORK : GR_OFFSET_SHEET;
+  oo.side = s->side;
+  oo.mode = j->o.exact ? GR_DIST_EXACT : GR_DIST_MESH;
+  gr_field *g = gr_offset_field_new(&oo, e);
+  gr_field_free(phi);
+  if (!g) return NULL;
+  if (trimmed && j->domain) {
+    gr_field *f = g;
+    if (j->skin > 0) {
+      /* solid skin {-skin <= domain <= 0}: part = max(domain, min(g, -domain - skin)) */
+      gr_field *sk = skin_field(j->domain, j->skin);
+      gr_field *inner = sk ? gr_field_min(g, sk) : NULL;
+      gr_field_free(sk);
+      f = inner ? gr_field_max(j->domain, inner) : NULL;
+      gr_field_free(inner);
+    } else {
+      f = gr_field_max(g, j->domain);
+    }
+    gr_field_free(g);
+    g = f;
+    if (!g) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
+  }
+  return g;
+}
+
+/* Phase 1, per class: take the template from the knowledge base, or make the
+ * class's field and allocate its template. */
+static int prepare_item(void *arg_, int item, gr_err *e) {
+  gr_build *a = arg_;
+  gr_job *j = a->j;
+  int c = a->items[item];
+  gr_vclass *cl = &j->cls[c];
+  cl->need = 0;
+  int i, jj, k;
+  gr_grid_ijk(&j->grid, cl->rep, &i, &jj, &k);
+  int nl = gr_grid_row_layers(&j->grid, k);
+  int use_kb = a->kb && !cl->trimmed && a->jb < 0;
+  if (use_kb) {
+    gr_template *r = NULL;
+    char warn[512] = "";
+    pthread_mutex_lock(a->kbmu);
+    int rc = gr_kb_get(a->kb, cl->key, &r, warn, sizeof warn, e);
+    if (warn[0]) {
+      snprintf(j->warning, sizeof j->warning, "%s", warn);
+      j->st.kb_corrupt++;
+    }
+    pthread_mutex_unlock(a->kbmu);
+    if (rc) return rc;
+    if (r) {
+      gr_tmpl *t = gr_tmpl_from_record(&j->o, r, nl);
+      gr_template_free(r);
+      if (t) {
+        gr_tmpl_free(cl->t);
+        cl->t = t;
+        pthread_mutex_lock(a->kbmu);
+        j->st.reused++;
+        if (!t->qualified) {
+          j->st.unqualified++;
+          snprintf(j->st.unqualified_why, sizeof j->st.unqualified_why, "%.16s: stored as not qualified", cl->key);
+        }
+        pthread_mutex_unlock(a->kbmu);
+        return GR_OK;
+      }
+    }
+  }
+  int ja = a->jb < 0 ? 0 : a->ja, jb = a->jb < 0 ? nl : a->jb;
+  if (ja < 0) ja = 0;
+  if (jb > nl) jb = nl;
+  gr_tmpl *t = gr_tmpl_new(ja, jb);
+  if (!t) return gr_fail(e, GR_EMEM, "out of memory");
+  gr_tmpl_free(cl->t);
+  cl->t = t;
+  cl->need = 1;
+  return GR_OK;
+}
+
+/* Phase 1b, per class to build: its field, sharing H with its group's
+ * reference class (fref >= 0, whose field exists) or its own. */
+static int field_item(void *arg_, int item, gr_err *e) {
+  gr_build *a = arg_;
+  gr_job *j = a->j;
+  int c = a->fc[item], ref = a->fref[item];
+  gr_vclass *cl = &j->cls[c];
+  double o[3], oref[3], sh[3] = {0, 0, 0};
+  if (ref >= 0) {
+    gr_grid_origin(&j->grid, cl->rep, o);
+    gr_grid_origin(&j->grid, j->cls[ref].rep, oref);
+    for (int k = 0; k < 3; k++) sh[k] = o[k] - oref[k];
+  }
+  /* a reference's H reaches a quarter cell further, for thicker members */
+  cl->field = voxel_field(j, cl->rep, cl->trimmed, ref >= 0 ? j->cls[ref].field : NULL, sh,
+                          a->fextra[item], e);
+  if (!cl->field) return e->code ? e->code : GR_EMEM;
+  const char *w = gr_offset_warning(cl->field);
+  if (w[0]) {
+    pthread_mutex_lock(a->kbmu);
+    snprintf(j->warning, sizeof j->warning, "%s", w);
+    pthread_mutex_unlock(a->kbmu);
+  }
+  return GR_OK;
+}
+
+/* Phase 2, per (class, layer chunk). */
+static int layers_item(void *arg_, int item, gr_err *e) {
+  gr_build *a = arg_;
+  gr_job *j = a->j;
+  int c = a->wc[item];
+  const gr_vclass *cl = &j->cls[c];
+  gr_tmpl_in in = {&j->o, &j->grid, {0, 0, 0}, 0};
+  int i, jj, k;
+  gr_grid_origin(&j->grid, cl->rep, in.vo);
+  gr_grid_ijk(&j->grid, cl->rep, &i, &jj, &k);
+  in.g0 = gr_grid_row_first(&j->grid, k);
+  return gr_tmpl_layers(&in, cl->t, cl->field, a->tab, a->wa[item], a->wb[item], e);
+}
+
+/* Phase 2a, per table layer: the shared closest points. */
+static int table_item(void *arg_, int item, gr_err *e) {
+  gr_build *a = arg_;
+  gr_job *j = a->j;
+  (void)j;
+  return gr_cptab_layer(a->tab, item, e);
+}
+
+static int store_item(void *arg_, int item, gr_err *e) {
+  gr_build *a = arg_;
+  gr_job *j = a->j;
+  int c = a->items[item];
+  gr_vclass *cl = &j->cls[c];
+  if (!cl->need) return GR_OK;
+  gr_field_free(cl->field);
+  cl->field = NULL;
+  cl->need = 0;
+  pthread_mutex_lock(a->kbmu);
+  j->st.built++;
+  pthread_mutex_unlock(a->kbmu);
+  char why[200];
+  gr_tmpl_qualify(&j->o, cl->t, cl->key, a->qualify, a->qualify_ud, why, sizeof why);
+  if (j->o.verify) j->st.verified++;
+  if (!cl->t->qualified) {
+    j->st.unqualified++;
+    snprintf(j->st.unqualified_why, sizeof j->st.unqualified_why, "%.16s: %s", cl->key, why);
+  }
+  if (a->kb && !cl->trimmed && a->jb < 0) {
+    gr_template *r = gr_tmpl_to_record(&j->o, cl->t, cl->sig, cl->count, e);
+    if (!r) return e->code ? e->code : GR_EMEM;
+    pthread_mutex_lock(a->kbmu);
+    int rc = gr_kb_put(a->kb, r, e);
+    pthread_mutex_unlock(a->kbmu);
+    gr_template_free(r);
+    if (rc) return rc;
+  }
+  return GR_OK;
+}
+
+/* Group key of a class for shared closest points ("" = not shareable). */
+static void share_key(const gr_job *j, int c, char *key, size_t n) {
+  const gr_vclass *cl = &j->cls[c];
+  key[0] = 0;
+  if (!cl->need || cl->trimmed || !j->o.exact || !j->o.share || !gr_cptab_period(j->o.cell, j->o.slice_cell)) return;
+  const gr_spec *sp = &j->specs[j->vspec[cl->rep]];
+  int i, jj, k;
+  gr_grid_ijk(&j->grid, cl->rep, &i, &jj, &k);
+  double o[3];
+  gr_grid_origin(&j->grid, cl->rep, o);
+  double phase = gr_grid_mid(&j->grid, gr_grid_row_first(&j->grid, k)) - o[2];
+  snprintf(key, n, "%d %.9g %d %d %.9g %d %d", sp->surface, sp->level, sp->network, sp->side,
+           round(phase / 1e-9) * 1e-9, cl->t->nl, cl->t->j0);
+}
+
+/* Work items for the classes cs[0..nc): chunks of 5 layers, enough for every core. */
+static int make_work(gr_build *a, const int *cs, int nc, gr_err *e) {
+  const gr_job *j = a->j;
+  size_t cap = 0;
+  free(a->wc); free(a->wa); free(a->wb);
+  a->wc = a->wa = a->wb = NULL;
+  a->nwork = 0;
+  for (int q = 0; q < nc; q++) {
+    const gr_vclass *cl = &j->cls[cs[q]];
+    for (int s = 0; s < cl->t->nl; s += 5) {
+      if ((size_t)a->nwork + 1 > cap) {
+        cap = cap ? 2 * cap : 64;
+        int *wc = realloc(a->wc, cap * sizeof *wc), *wa = realloc(a->wa, cap * sizeof *wa), *wb = realloc(a->wb, cap * sizeof *wb);
+        if (wc) a->wc = wc;
+        if (wa) a->wa = wa;
+        if (wb) a->wb = wb;
+        if (!wc || !wa || !wb) return gr_fail(e, GR_EMEM, "out of memory");
+      }
+      a->wc[a->nwork] = cs[q];
+      a->wa[a->nwork] = s;
+      a->wb[a->nwork] = s + 5 < cl->t->nl ? s + 5 : cl->t->nl;
+      a->nwork++;
+    }
+  }
+  return GR_OK;
+}
+
+/* The shared closest points of the group cs[0..nc) (cs[0] the reference). */
+static gr_cptab *make_table(gr_build *a, const int *cs, int nc, gr_err *e) {
+  gr_job *j = a->j;
+  const gr_vclass *cl = &j->cls[cs[0]];
+  double oref[3], tmax = 0;
+  int i, jj, k;
+  gr_grid_origin(&j->grid, cl->rep, oref);
+  gr_grid_ijk(&j->grid, cl->rep, &i, &jj, &k);
+  for (int q = 0; q < nc; q++) tmax = fmax(tmax, gr_offset_max_thickness(j->cls[cs[q]].field));
+  /* nodes of crossing edges lie within T + h of H; beyond, only signs matter */
+  double dmax = 1.2 * tmax + 2 * j->o.slice_cell;
+  gr_cptab *t = gr_cptab_new(&j->grid, j->o.slice_cell, gr_tmpl_window(&j->o), cl->field, oref,
+                             gr_grid_row_first(&j->grid, k) + cl->t->j0, cl->t->nl, dmax, e);
+  if (!t) return NULL;
+  a->tab = t;
+  if (gr_pool_for(cl->t->nl, table_item, a, j->o.threads, NULL, NULL, "closest points", e)) {
+    a->tab = NULL;
+    gr_cptab_free(t);
+    return NULL;
+  }
+  return t;
+}
+
+/* Progress of a part of the work, reported as a share of the whole. */
+typedef struct prog_part { const gr_job_run_opts *r; long base, span, total; } prog_part;
+static void prog_part_fn(void *ud, const char *stage, long d, long n) {
+  const prog_part *p = ud;
+  p->r->progress(p->r->progress_ud, stage, p->base + (n > 0 ? d * p->span / n : p->span), p->total);
+}
+
+/* Build (or load) the templates of the classes in a->items: classes that
+ * share closest points group by group, the others each on its own. */
+int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, gr_err *e) {
+  gr_job *j = a->j;
+  int rc = gr_pool_for(a->nitems, prepare_item, a, j->o.threads, NULL, NULL, stage, e);
+  int n = a->nitems;
+  /* groups: gid[q] = index (into items) of the group's first class, -1 = none */
+  int *cs = malloc((n + 1) * sizeof *cs), *gid = malloc((n + 1) * sizeof *gid);
+  a->fc = malloc((n + 1) * sizeof *a->fc);
+  a->fref = malloc((n + 1) * sizeof *a->fref);
+  a->fextra = malloc((n + 1) * sizeof *a->fextra);
+  char (*keys)[128] = malloc((n + 1) * sizeof *keys);
+  if (!cs || !gid || !a->fc || !a->fref || !a->fextra || !keys) rc = rc ? rc : gr_fail(e, GR_EMEM, "out of memory");
+  long total = 0, base = 0;
+  for (int q = 0; q < n && rc == GR_OK; q++) {
+    gid[q] = -1;
+    if (!j->cls[a->items[q]].need) continue;
+    total += j->cls[a->items[q]].t->nl;
+    share_key(j, a->items[q], keys[q], sizeof keys[q]);
+    if (!keys[q][0]) continue;
+    for (int p = 0; p < q && gid[q] < 0; p++)
+      if (gid[p] == p && strcmp(keys[p], keys[q]) == 0) gid[q] = p;
+    if (gid[q] < 0) gid[q] = q;
+  }
+  /* fields: group references and unshared classes, then the members */
+  for (int pass = 0; pass < 2 && rc == GR_OK; pass++) {
+    int nf = 0;
+    for (int q = 0; q < n; q++) {
+      if (!j->cls[a->items[q]].need) continue;
+      int member = gid[q] >= 0 && gid[q] != q;
+      if (member != pass) continue;
+      a->fc[nf] = a->items[q];
+      a->fref[nf] = member ? a->items[gid[q]] : -1;
+      a->fextra[nf] = gid[q] == q ? 0.25 * j->o.cell : 0;
+      nf++;
+    }
+    rc = gr_pool_for(nf, field_item, a, j->o.threads, NULL, NULL, stage, e);
+  }
+  for (int q = 0; q < n && rc == GR_OK; q++) {
+    if (!j->cls[a->items[q]].need || (gid[q] >= 0 && gid[q] != q)) continue;
+    int nc = 0;
+    if (gid[q] < 0) cs[nc++] = a->items[q];
+    else
+      for (int p = q; p < n; p++)
+        if (gid[p] == q) cs[nc++] = a->items[p];
+    gr_cptab *t = NULL;
+    if (gid[q] >= 0 && !(t = make_table(a, cs, nc, e))) { rc = e->code ? e->code : GR_EMEM; break; }
+    a->tab = t;
+    long nl = 0;
+    for (int p = 0; p < nc; p++) nl += j->cls[cs[p]].t->nl;
+    prog_part pp = {r, base, nl, total};
+    int prog = r && r->progress;
+    if ((rc = make_work(a, cs, nc, e)) == GR_OK)
+      rc = gr_pool_for(a->nwork, layers_item, a, j->o.threads, prog ? prog_part_fn : NULL, prog ? &pp : NULL, stage, e);
+    a->tab = NULL;
+    gr_cptab_free(t);
+    base += nl;
+  }
+  free(keys);
+  free(gid);
+  free(a->fc); free(a->fref); free(a->fextra);
+  a->fc = a->fref = NULL;
+  a->fextra = NULL;
+  free(cs);
+  gr_err e2;
+  gr_err_clear(&e2);
+  /* store (and qualify) only complete templates: after a failure some layers were never built */
+  int rc2 = rc == GR_OK ? gr_pool_for(a->nitems, store_item, a, 1, NULL, NULL, stage, &e2) : GR_OK;
+  if (rc == GR_OK && rc2) { rc = rc2; *e = e2; }
+  /* on failure, drop any fields left */
+  for (int q = 0; q < a->nitems; q++) {
+    gr_vclass *cl = &j->cls[a->items[q]];
+    gr_field_free(cl->field);
+    cl->field = NULL;
+  }
+  return rc;
+}
+
+void gr_build_done(gr_build *a) {
+  free(a->wc);
+  free(a->wa);
+  free(a->wb);
+  a->wc = a->wa = a->wb = NULL;
+}

@@ -1,0 +1,43 @@
+/* build.h: building the templates of a set of classes (paper s.3.2-3.4 and
+ * the knowledge base of s.3.6), the step between classification and layer
+ * assembly.
+ *
+ * Takes: the classified job and a set of classes (every class of the job, or
+ * with kb=off the voxels of one row and a layer range), the knowledge base.
+ * Gives: each class's template (gr_tmpl), from the knowledge base when it is
+ * there, else built: (1) each class's graded field - the offset of H by its
+ * thickness T (distance.h), trimmed by the part's domain and skin where the
+ * voxel is cut - with classes that differ only in T sharing H and its
+ * closest points (cptab.h); (2) its layers (template.h) in chunks on the
+ * worker pool (pool.h); (3) its quality and qualification, stored into the
+ * knowledge base. Counts built, reused, verified and unqualified templates in
+ * the job's statistics. */
+#ifndef GR_BUILD_H
+#define GR_BUILD_H
+#include <pthread.h>
+#include "job.h"
+
+typedef struct gr_build {
+  gr_job *j;
+  gr_kb *kb;               /* knowledge base or NULL */
+  pthread_mutex_t *kbmu;   /* guards kb, the job's warning and counts */
+  int *items;              /* classes */
+  int nitems;
+  int ja, jb;              /* local layer range, jb < 0: all */
+  gr_qualify_fn qualify;   /* the recipe's rule or NULL */
+  void *qualify_ud;
+  /* work space */
+  int *wc, *wa, *wb;       /* work items: class, template layers [wa, wb) */
+  int nwork;
+  gr_cptab *tab;           /* shared closest points of the classes in work, or NULL */
+  int *fc, *fref;          /* field items: class, reference class or -1 */
+  double *fextra;          /* field items: extra margin of H, mm */
+} gr_build;
+
+/* Build (or load) the templates of the classes in a->items; progress via r
+ * (may be NULL) under the name `stage`. */
+int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, gr_err *e);
+/* Free the work space. */
+void gr_build_done(gr_build *a);
+
+#endif

@@ -1,0 +1,182 @@
+/* bvh.c: closest points on triangle meshes, see bvh.h. */
+#include "bvh.h"
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct bnode {
+  double lo[3], hi[3];
+  int left;   /* child index, or -1 for a leaf */
+  int right;
+  int first, count; /* leaf: triangles tri[first .. first+count) */
+} bnode;
+
+struct gr_bvh {
+  const gr_mesh *m;
+  bnode *node;
+  int nnode;
+  uint32_t *tri;   /* triangle order */
+  double *cen;     /* centroids 3*nf */
+};
+
+static void tri_box(const gr_mesh *m, uint32_t t, double lo[3], double hi[3]) {
+  for (int a = 0; a < 3; a++) { lo[a] = INFINITY; hi[a] = -INFINITY; }
+  for (int k = 0; k < 3; k++) {
+    const double *v = m->v + 3 * m->f[3 * t + k];
+    for (int a = 0; a < 3; a++) { lo[a] = fmin(lo[a], v[a]); hi[a] = fmax(hi[a], v[a]); }
+  }
+}
+
+static int build(gr_bvh *b, int first, int count) {
+  int id = b->nnode++;
+  bnode *n = &b->node[id];
+  for (int a = 0; a < 3; a++) { n->lo[a] = INFINITY; n->hi[a] = -INFINITY; }
+  double clo[3] = {INFINITY, INFINITY, INFINITY}, chi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (int i = first; i < first + count; i++) {
+    double lo[3], hi[3];
+    tri_box(b->m, b->tri[i], lo, hi);
+    for (int a = 0; a < 3; a++) {
+      n->lo[a] = fmin(n->lo[a], lo[a]);
+      n->hi[a] = fmax(n->hi[a], hi[a]);
+      double c = b->cen[3 * b->tri[i] + a];
+      clo[a] = fmin(clo[a], c);
+      chi[a] = fmax(chi[a], c);
+    }
+  }
+  if (count <= 4) {
+    n->left = n->right = -1;
+    n->first = first;
+    n->count = count;
+    return id;
+  }
+  int ax = 0;
+  for (int a = 1; a < 3; a++) if (chi[a] - clo[a] > chi[ax] - clo[ax]) ax = a;
+  double mid = 0.5 * (clo[ax] + chi[ax]);
+  int i = first, j = first + count - 1;
+  while (i <= j) {
+    if (b->cen[3 * b->tri[i] + ax] < mid) i++;
+    else { uint32_t t = b->tri[i]; b->tri[i] = b->tri[j]; b->tri[j] = t; j--; }
+  }
+  int nl = i - first;
+  if (nl == 0 || nl == count) nl = count / 2; /* all centroids equal along ax */
+  int l = build(b, first, nl);
+  int r = build(b, first + nl, count - nl);
+  n = &b->node[id];
+  n->left = l;
+  n->right = r;
+  n->first = n->count = 0;
+  return id;
+}
+
+gr_bvh *gr_bvh_new(const gr_mesh *m, gr_err *e) {
+  if (!m || m->nf == 0) return gr_fail(e, GR_EARG, "distance: the mesh is empty"), NULL;
+  for (size_t i = 0; i < 3 * m->nv; i++)
+    if (!isfinite(m->v[i])) return gr_fail(e, GR_EGEOM, "distance: mesh vertex %zu is not finite", i / 3), NULL;
+  for (size_t i = 0; i < 3 * m->nf; i++)
+    if (m->f[i] >= m->nv) return gr_fail(e, GR_EGEOM, "distance: face %zu refers to missing vertex %u", i / 3, m->f[i]), NULL;
+  gr_bvh *b = calloc(1, sizeof *b);
+  if (!b) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
+  b->m = m;
+  b->node = malloc(2 * m->nf * sizeof *b->node);
+  b->tri = malloc(m->nf * sizeof *b->tri);
+  b->cen = malloc(3 * m->nf * sizeof *b->cen);
+  if (!b->node || !b->tri || !b->cen) { gr_bvh_free(b); return gr_fail(e, GR_EMEM, "out of memory for BVH"), NULL; }
+  for (size_t t = 0; t < m->nf; t++) {
+    b->tri[t] = (uint32_t)t;
+    for (int a = 0; a < 3; a++)
+      b->cen[3 * t + a] = (m->v[3 * m->f[3 * t] + a] + m->v[3 * m->f[3 * t + 1] + a] + m->v[3 * m->f[3 * t + 2] + a]) / 3;
+  }
+  build(b, 0, (int)m->nf);
+  return b;
+}
+
+void gr_bvh_free(gr_bvh *b) {
+  if (!b) return;
+  free(b->node);
+  free(b->tri);
+  free(b->cen);
+  free(b);
+}
+
+
+/* Closest point on a triangle by its Voronoi regions (vertex, edge, face). */
+void gr_closest_on_triangle(const double p[3], const double a[3], const double b[3],
+                            const double c[3], double q[3]) {
+  double ab[3], ac[3], ap[3];
+  for (int i = 0; i < 3; i++) { ab[i] = b[i] - a[i]; ac[i] = c[i] - a[i]; ap[i] = p[i] - a[i]; }
+  double d1 = gr_dot3(ab, ap), d2 = gr_dot3(ac, ap);
+  if (d1 <= 0 && d2 <= 0) { memcpy(q, a, 3 * sizeof *q); return; }
+  double bp[3];
+  for (int i = 0; i < 3; i++) bp[i] = p[i] - b[i];
+  double d3 = gr_dot3(ab, bp), d4 = gr_dot3(ac, bp);
+  if (d3 >= 0 && d4 <= d3) { memcpy(q, b, 3 * sizeof *q); return; }
+  double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    double v = d1 / (d1 - d3);
+    for (int i = 0; i < 3; i++) q[i] = a[i] + v * ab[i];
+    return;
+  }
+  double cp[3];
+  for (int i = 0; i < 3; i++) cp[i] = p[i] - c[i];
+  double d5 = gr_dot3(ab, cp), d6 = gr_dot3(ac, cp);
+  if (d6 >= 0 && d5 <= d6) { memcpy(q, c, 3 * sizeof *q); return; }
+  double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    double w = d2 / (d2 - d6);
+    for (int i = 0; i < 3; i++) q[i] = a[i] + w * ac[i];
+    return;
+  }
+  double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    for (int i = 0; i < 3; i++) q[i] = b[i] + w * (c[i] - b[i]);
+    return;
+  }
+  double den = va + vb + vc;
+  if (!(fabs(den) > 0)) { memcpy(q, a, 3 * sizeof *q); return; } /* degenerate */
+  double v = vb / den, w = vc / den;
+  for (int i = 0; i < 3; i++) q[i] = a[i] + ab[i] * v + ac[i] * w;
+}
+
+static double box_d2(const bnode *n, const double p[3]) {
+  double s = 0;
+  for (int a = 0; a < 3; a++) {
+    double d = p[a] < n->lo[a] ? n->lo[a] - p[a] : (p[a] > n->hi[a] ? p[a] - n->hi[a] : 0);
+    s += d * d;
+  }
+  return s;
+}
+
+int gr_bvh_closest(const gr_bvh *b, const double p[3], double maxdist, gr_hit *h) {
+  double best = isfinite(maxdist) ? maxdist * maxdist : INFINITY;
+  h->tri = -1;
+  h->dist = INFINITY;
+  int stack[128], sp = 0;
+  stack[sp++] = 0;
+  const gr_mesh *m = b->m;
+  while (sp) {
+    const bnode *n = &b->node[stack[--sp]];
+    if (box_d2(n, p) > best) continue;
+    if (n->left < 0) {
+      for (int i = n->first; i < n->first + n->count; i++) {
+        uint32_t t = b->tri[i];
+        double q[3];
+        gr_closest_on_triangle(p, m->v + 3 * m->f[3 * t], m->v + 3 * m->f[3 * t + 1], m->v + 3 * m->f[3 * t + 2], q);
+        double d2 = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]);
+        if (d2 <= best) {
+          best = d2;
+          h->tri = t;
+          memcpy(h->q, q, sizeof h->q);
+        }
+      }
+      continue;
+    }
+    double dl = box_d2(&b->node[n->left], p), dr = box_d2(&b->node[n->right], p);
+    if (sp + 2 > 128) continue; /* cannot happen for balanced trees of < 2^60 triangles */
+    if (dl < dr) { stack[sp++] = n->right; stack[sp++] = n->left; }
+    else { stack[sp++] = n->left; stack[sp++] = n->right; }
+  }
+  if (h->tri >= 0) h->dist = sqrt(best);
+  return GR_OK;
+}
+

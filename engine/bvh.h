@@ -1,0 +1,26 @@
+/* bvh.h: closest points on triangle meshes (a bounding-volume hierarchy),
+ * the primitive under the offset field (distance.h) and the STL domain
+ * (solid.h). Takes a mesh; gives the closest point of the mesh to any point. */
+#ifndef GR_BVH_H
+#define GR_BVH_H
+#include "mesh.h"
+
+static inline double gr_dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+typedef struct gr_bvh gr_bvh;
+/* Build over m (which must outlive the BVH). Empty meshes and NaN vertices
+ * are GR_EARG/GR_EGEOM errors naming the vertex. */
+gr_bvh *gr_bvh_new(const gr_mesh *m, gr_err *e);
+void gr_bvh_free(gr_bvh *b);
+typedef struct gr_hit {
+  double q[3];   /* closest point, mm */
+  double dist;   /* unsigned distance, mm */
+  long tri;      /* triangle index, -1 when nothing within the cut-off */
+} gr_hit;
+/* Closest point of the mesh to p within maxdist (INFINITY: no cut-off). */
+int gr_bvh_closest(const gr_bvh *b, const double p[3], double maxdist, gr_hit *h);
+/* Exact closest point of triangle abc to p. */
+void gr_closest_on_triangle(const double p[3], const double a[3], const double b[3],
+                            const double c[3], double q[3]);
+
+#endif

@@ -1,0 +1,117 @@
+/* clip.c: clipping to a voxel square, see clip.h. */
+#include "clip.h"
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include "common.h"
+
+/* Liang-Barsky: clip segment p->q to the box; returns 0 if nothing is left,
+ * else the parameters t0 <= t1 in [0,1]. */
+int gr_clip_seg(double px, double py, double qx, double qy, const double lo[2],
+                const double hi[2], double *t0, double *t1) {
+  double a = 0, b = 1;
+  double dx = qx - px, dy = qy - py;
+  double pp[4] = {-dx, dx, -dy, dy};
+  double qq[4] = {px - lo[0], hi[0] - px, py - lo[1], hi[1] - py};
+  for (int i = 0; i < 4; i++) {
+    if (pp[i] == 0) {
+      if (qq[i] < 0) return 0;
+    } else {
+      double r = qq[i] / pp[i];
+      if (pp[i] < 0) { if (r > b) return 0; if (r > a) a = r; }
+      else { if (r < a) return 0; if (r < b) b = r; }
+    }
+  }
+  *t0 = a;
+  *t1 = b;
+  return a <= b;
+}
+
+int gr_clip_open_dir(int dir) { return dir == GR_DIR_THIN ? GR_DIR_THIN : 2; }
+
+int gr_clip_poly(const double *p, size_t n, int closed, int kind, int dir,
+                 const double lo[2], const double hi[2], gr_layer *out,
+                 double **buf, size_t *cap) {
+  if (closed && n > 1 && p[0] == p[2 * (n - 1)] && p[1] == p[2 * (n - 1) + 1]) n--;
+  int odir = gr_clip_open_dir(dir);
+  if (n < 2) return GR_OK;
+  if (gr_grow(buf, cap, n + 2, 2 * sizeof(double))) return GR_EMEM;
+  double *bf = *buf;
+  size_t s0 = n;
+  for (size_t k = 0; k < n; k++)
+    if (p[2 * k] < lo[0] || p[2 * k] > hi[0] || p[2 * k + 1] < lo[1] || p[2 * k + 1] > hi[1]) { s0 = k; break; }
+  if (s0 == n) { /* wholly inside */
+    memcpy(bf, p, n * 2 * sizeof(double));
+    size_t m = n;
+    if (closed) { bf[2 * n] = p[0]; bf[2 * n + 1] = p[1]; m++; }
+    return gr_layer_add(out, closed ? GR_CLOSED : GR_OPEN, kind, 0, closed ? dir : odir, bf, m);
+  }
+  if (!closed) s0 = 0;
+  size_t nedges = closed ? n : n - 1, m = 0;
+  for (size_t e = 0; e < nedges; e++) {
+    size_t a = (s0 + e) % n, b = (s0 + e + 1) % n;
+    double ax = p[2 * a], ay = p[2 * a + 1], bx = p[2 * b], by = p[2 * b + 1];
+    double t0, t1;
+    if (!gr_clip_seg(ax, ay, bx, by, lo, hi, &t0, &t1)) continue;
+    if (t0 > 0 || m == 0) {
+      if (m >= 2 && gr_layer_add(out, GR_OPEN, kind, 0, odir, bf, m)) return GR_EMEM;
+      bf[0] = ax + t0 * (bx - ax);
+      bf[1] = ay + t0 * (by - ay);
+      m = 1;
+    }
+    bf[2 * m] = t1 < 1 ? ax + t1 * (bx - ax) : bx;
+    bf[2 * m + 1] = t1 < 1 ? ay + t1 * (by - ay) : by;
+    m++;
+    if (t1 < 1) {
+      if (m >= 2 && gr_layer_add(out, GR_OPEN, kind, 0, odir, bf, m)) return GR_EMEM;
+      m = 0;
+    }
+  }
+  if (m >= 2 && gr_layer_add(out, GR_OPEN, kind, 0, odir, bf, m)) return GR_EMEM;
+  return GR_OK;
+}
+
+/* Area of the region bounded by `r` inside the box: each ring clipped by Sutherland-Hodgman against the four box edges; the
+ * degenerate edges this leaves along the border have no area. */
+
+double gr_clip_area(const gr_rings *r, const double lo[2], const double hi[2]) {
+  double total = 0;
+  size_t cap = 0;
+  double *a = NULL, *b = NULL;
+  size_t capb = 0;
+  for (size_t i = 0; i < r->nrings; i++) {
+    size_t n = gr_ring_len(r, i);
+    if (gr_grow(&a, &cap, 2 * n + 8, 2 * sizeof(double)) || gr_grow(&b, &capb, 2 * n + 8, 2 * sizeof(double))) break;
+    memcpy(a, gr_ring_xy(r, i), n * 2 * sizeof(double));
+    for (int edge = 0; edge < 4 && n > 0; edge++) {
+      int ax = edge & 1;          /* 0: x, 1: y */
+      int upper = edge >= 2;      /* 0: keep >= lo, 1: keep <= hi */
+      double c = upper ? hi[ax] : lo[ax];
+      size_t m = 0;
+      if (gr_grow(&b, &capb, 2 * n + 8, 2 * sizeof(double))) break;
+      for (size_t k = 0; k < n; k++) {
+        const double *P = a + 2 * ((k + n - 1) % n), *Q = a + 2 * k;
+        int pin = upper ? P[ax] <= c : P[ax] >= c, qin = upper ? Q[ax] <= c : Q[ax] >= c;
+        if (qin != pin) {
+          double t = (c - P[ax]) / (Q[ax] - P[ax]);
+          b[2 * m] = P[0] + t * (Q[0] - P[0]);
+          b[2 * m + 1] = P[1] + t * (Q[1] - P[1]);
+          b[2 * m + ax] = c;
+          m++;
+        }
+        if (qin) { b[2 * m] = Q[0]; b[2 * m + 1] = Q[1]; m++; }
+      }
+      double *t = a; a = b; b = t;
+      size_t tc = cap; cap = capb; capb = tc;
+      n = m;
+      if (gr_grow(&a, &cap, 2 * n + 8, 2 * sizeof(double))) { n = 0; break; }
+    }
+    double ar = 0;
+    for (size_t k = 0, q = n ? n - 1 : 0; k < n; q = k++) ar += a[2 * q] * a[2 * k + 1] - a[2 * k] * a[2 * q + 1];
+    total += 0.5 * ar;
+  }
+  free(a);
+  free(b);
+  return total;
+}
+

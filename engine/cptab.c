@@ -1,0 +1,136 @@
+/* cptab.c: shared closest points, see cptab.h. */
+#include "cptab.h"
+#include <math.h>
+#include <stdlib.h>
+#include "distance.h"
+
+void gr_cptab_free(gr_cptab *t) {
+  if (!t) return;
+  free(t->q);
+  free(t->sd);
+  free(t);
+}
+
+int gr_cptab_period(double cell, double h) {
+  double P = cell / h;
+  return fabs(P - round(P)) < 1e-9 * P && round(P) >= 2 ? (int)round(P) : 0;
+}
+
+gr_cptab *gr_cptab_new(const gr_grid *grid, double h, double margin, const gr_field *ref, const double oref[3],
+                       int g0, int nl, double dmax, gr_err *e) {
+  gr_cptab *t = calloc(1, sizeof *t);
+  if (!t) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
+  t->P = gr_cptab_period(grid->cell, h);
+  t->nl = nl;
+  t->g0 = g0;
+  t->h = h;
+  t->cell = grid->cell;
+  t->grid = grid;
+  t->field = ref;
+  for (int a = 0; a < 3; a++) t->oref[a] = oref[a];
+  t->lo[0] = t->oref[0] - margin;
+  t->lo[1] = t->oref[1] - margin;
+  t->dmax = dmax;
+  size_t np = (size_t)t->P * t->P * nl;
+  t->q = malloc(3 * np * sizeof *t->q);
+  t->sd = malloc(np * sizeof *t->sd);
+  if (!t->q || !t->sd) { gr_cptab_free(t); return gr_fail(e, GR_EMEM, "out of memory"), NULL; }
+  return t;
+}
+
+int gr_cptab_layer(gr_cptab *t, int q, gr_err *e) {
+  size_t n = (size_t)t->P * t->P;
+  double *x = malloc(3 * n * sizeof *x);
+  if (!x) return gr_fail(e, GR_EMEM, "out of memory");
+  double *y = x + n, *z = x + 2 * n, zq = gr_grid_mid(t->grid, t->g0 + q);
+  for (int b = 0; b < t->P; b++)
+    for (int a = 0; a < t->P; a++) {
+      x[a + (size_t)t->P * b] = t->lo[0] + a * t->h;
+      y[a + (size_t)t->P * b] = t->lo[1] + b * t->h;
+      z[a + (size_t)t->P * b] = zq;
+    }
+  int rc = gr_offset_closest(t->field, n, x, y, z, t->dmax, t->q + 3 * n * q, t->sd + n * q, e);
+  free(x);
+  return rc;
+}
+
+/* Refinement on the true field from the closest points of the nearest nodes. */
+typedef struct near_ud {
+  const gr_field *f;
+  double z, lo[2], h;
+  int nx, ny;
+  const double *q; /* 3 per window node */
+} near_ud;
+
+
+/* Value (and in-plane gradient when gx != NULL) at n points. */
+static int near_eval(void *ud_, size_t n, const double *x, const double *y, double *out,
+                     double *gx, double *gy, gr_err *e) {
+  const near_ud *u = ud_;
+  enum { B = 256 };
+  double hint[3 * B], zb[B], g[3 * B];
+  for (size_t s = 0; s < n; s += B) {
+    size_t m = n - s < B ? n - s : B;
+    for (size_t i = 0; i < m; i++) {
+      double fx = (x[s + i] - u->lo[0]) / u->h, fy = (y[s + i] - u->lo[1]) / u->h;
+      int a = (int)floor(fx), b = (int)floor(fy);
+      double best = INFINITY;
+      hint[3 * i] = hint[3 * i + 1] = hint[3 * i + 2] = NAN;
+      for (int c = 0; c < 4; c++) {
+        int ia = a + (c & 1), ib = b + (c >> 1);
+        if (ia < 0 || ib < 0 || ia >= u->nx || ib >= u->ny) continue;
+        const double *q = u->q + 3 * (ia + (size_t)u->nx * ib);
+        double d2 = (fx - ia) * (fx - ia) + (fy - ib) * (fy - ib);
+        if (!isnan(q[0]) && d2 < best) {
+          /* the node's closest point moved along the tangent plane there
+           * by the point's offset from the node */
+          double c[3] = {u->lo[0] + ia * u->h, u->lo[1] + ib * u->h, u->z};
+          double nv[3] = {c[0] - q[0], c[1] - q[1], c[2] - q[2]}, dp[3] = {x[s + i] - c[0], y[s + i] - c[1], 0};
+          double nn = sqrt(nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2]);
+          double dn = nn > 1e-9 ? (dp[0] * nv[0] + dp[1] * nv[1]) / (nn * nn) : 0;
+          best = d2;
+          for (int k = 0; k < 3; k++) hint[3 * i + k] = q[k] + dp[k] - dn * nv[k];
+        }
+      }
+      zb[i] = u->z;
+    }
+    int rc = gr_offset_eval_near(u->f, m, x + s, y + s, zb, hint, out + s, gx ? g : NULL, e);
+    if (rc) return rc;
+    if (gx)
+      for (size_t i = 0; i < m; i++) {
+        gx[s + i] = g[3 * i];
+        gy[s + i] = g[3 * i + 1];
+      }
+  }
+  return GR_OK;
+}
+static int near_fn(void *ud, size_t n, const double *x, const double *y, double *out, gr_err *e) {
+  return near_eval(ud, n, x, y, out, NULL, NULL, e);
+}
+
+/* Section of class c's layer at z (template layer q) through the table. */
+int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int q,
+                   double z, const gr_slice_opts *so, gr_rings *out, gr_err *e) {
+  int nx, ny;
+  double hx, hy, L = t->cell;
+  gr_slice_grid_size(so, &nx, &ny, &hx, &hy);
+  size_t nn = (size_t)nx * ny, np = (size_t)t->P * t->P;
+  double *Q = malloc(5 * nn * sizeof *Q);
+  if (!Q) return gr_fail(e, GR_EMEM, "out of memory");
+  double *sd = Q + 3 * nn, *v = Q + 4 * nn;
+  double sh[3] = {o[0] - t->oref[0], o[1] - t->oref[1], o[2] - t->oref[2]};
+  const double *tq = t->q + 3 * np * q, *tsd = t->sd + np * q;
+  for (int b = 0; b < ny; b++)
+    for (int a = 0; a < nx; a++) {
+      size_t n = a + (size_t)nx * b, k = a % t->P + (size_t)t->P * (b % t->P);
+      Q[3 * n] = tq[3 * k] + sh[0] + (a / t->P) * L;
+      Q[3 * n + 1] = tq[3 * k + 1] + sh[1] + (b / t->P) * L;
+      Q[3 * n + 2] = tq[3 * k + 2] + sh[2];
+      sd[n] = tsd[k];
+    }
+  int rc = gr_offset_values(f, nn, Q, sd, v, e);
+  near_ud u = {f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q};
+  if (!rc) rc = gr_slice_grid(v, so, near_fn, near_eval, &u, out, e);
+  free(Q);
+  return rc;
+}

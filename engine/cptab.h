@@ -1,0 +1,46 @@
+/* cptab.h: shared closest points (templates stage, exact mode).
+ *
+ * Classes that differ only in thickness (same surface, level, kind, z-phase
+ * and layers: the rows of a part graded along its height, say) share H. The
+ * closest point on H of every slice-grid node is computed once for the group,
+ * over one period of the grid (L = P h), and each class only evaluates its
+ * own T there; crossings are refined from the nearest node's closest point
+ * instead of searching the mesh. Mesh mode's H depends on the voxel's box, so
+ * only exact mode shares.
+ *
+ * Takes: the group's reference field (its H), the reference voxel's corner,
+ * the slice grid (spacing h, window corner) and the template's layers. Gives:
+ * per template layer, the closest points and signed distances of one period
+ * of grid nodes, and from them any member class's section. */
+#ifndef GR_CPTAB_H
+#define GR_CPTAB_H
+#include "field.h"
+#include "grid.h"
+#include "slice.h"
+
+typedef struct gr_cptab {
+  int P;                 /* nodes per period */
+  int nl;                /* template layers */
+  int g0;                /* global layer of table layer 0 */
+  double h, cell;        /* slice grid spacing, cell L, mm */
+  double lo[2];          /* slice window corner of the reference voxel, mm */
+  double oref[3];        /* reference voxel origin, mm */
+  double dmax;           /* closest points are exact within this distance of H, mm */
+  const gr_field *field; /* the reference class's field */
+  const gr_grid *grid;
+  double *q, *sd;        /* per template layer, P*P nodes: closest point, signed distance */
+} gr_cptab;
+
+/* Nodes per period, or 0 when the slice grid (spacing h) is not periodic with the cell. */
+int gr_cptab_period(double cell, double h);
+/* An empty table (fill it with gr_cptab_layer for q = 0..nl-1); NULL + e on failure. */
+gr_cptab *gr_cptab_new(const gr_grid *grid, double h, double margin, const gr_field *ref, const double oref[3],
+                       int g0, int nl, double dmax, gr_err *e);
+void gr_cptab_free(gr_cptab *t);
+/* Closest points of table layer q (thread-safe for distinct q). */
+int gr_cptab_layer(gr_cptab *t, int q, gr_err *e);
+/* Section of a member class (field f, voxel corner o) at height z (table layer q). */
+int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int q,
+                   double z, const gr_slice_opts *so, gr_rings *out, gr_err *e);
+
+#endif

@@ -1,0 +1,480 @@
+/* march.c: marching squares with refined crossings, see march.h. */
+#include "march.h"
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Evaluate fn at n points in chunks (keeps scratch buffers of callers small). */
+int gr_ms_eval(gr_slice_fn fn, void *ud, size_t n, const double *x,
+                    const double *y, double *out, gr_err *e) {
+  for (size_t s = 0; s < n; s += MS_CHUNK) {
+    size_t m = n - s < MS_CHUNK ? n - s : MS_CHUNK;
+    int rc = fn(ud, m, x + s, y + s, out + s, e);
+    if (rc) return rc;
+  }
+  return GR_OK;
+}
+
+/* Batched root finding on n segments P_k + t (Q_k - P_k), t in [0,1], with
+ * fp < 0 <= fq given. Each pass evaluates once on all unconverged segments.
+ * Without gfn: Illinois (modified regula falsi), stopping when the bracket is
+ * shorter than tol (mm), so the returned point is within tol of a root. With
+ * gfn (value and gradient): Newton steps kept inside the bracket (Illinois
+ * where a step leaves it), stopping when the Newton step is below tol.
+ * P, Q: 2n coordinates; out: 2n coordinates. */
+static int roots_batch(gr_slice_fn fn, gr_slice_grad_fn gfn, void *ud, size_t n, const double *P,
+                       const double *Q, const double *fp, const double *fq,
+                       int refine, double tol, double *out, gr_err *e) {
+  if (n == 0) return GR_OK;
+  double *ta = malloc(n * sizeof *ta), *tb = malloc(n * sizeof *tb);
+  double *fa = malloc(n * sizeof *fa), *fb = malloc(n * sizeof *fb);
+  double *len = malloc(n * sizeof *len), *tn = malloc(n * sizeof *tn);
+  int *side = calloc(n, sizeof *side);
+  size_t *act = malloc(n * sizeof *act);
+  double *qx = malloc(n * sizeof *qx), *qy = malloc(n * sizeof *qy);
+  double *qt = malloc(n * sizeof *qt), *qf = malloc(n * sizeof *qf);
+  double *gx = malloc(n * sizeof *gx), *gy = malloc(n * sizeof *gy);
+  int rc = GR_OK;
+  if (!ta || !tb || !fa || !fb || !len || !tn || !side || !act || !qx || !qy || !qt || !qf || !gx || !gy) {
+    rc = gr_fail(e, GR_EMEM, "out of memory refining %zu crossings", n);
+    goto done;
+  }
+  size_t na = 0;
+  for (size_t k = 0; k < n; k++) {
+    ta[k] = 0; tb[k] = 1; fa[k] = fp[k]; fb[k] = fq[k];
+    tn[k] = NAN;
+    len[k] = hypot(Q[2 * k] - P[2 * k], Q[2 * k + 1] - P[2 * k + 1]);
+    if (refine && len[k] > tol && fb[k] != 0) act[na++] = k;
+  }
+  for (int it = 0; it < 200 && na > 0; it++) {
+    for (size_t i = 0; i < na; i++) {
+      size_t k = act[i];
+      double t = tn[k];
+      if (!(t > ta[k] && t < tb[k])) t = (ta[k] * fb[k] - tb[k] * fa[k]) / (fb[k] - fa[k]);
+      if (!(t > ta[k] && t < tb[k]) || !isfinite(t)) t = 0.5 * (ta[k] + tb[k]);
+      if (it > 100) t = 0.5 * (ta[k] + tb[k]); /* safety net: plain bisection */
+      qt[i] = t;
+      qx[i] = P[2 * k] + t * (Q[2 * k] - P[2 * k]);
+      qy[i] = P[2 * k + 1] + t * (Q[2 * k + 1] - P[2 * k + 1]);
+    }
+    if (gfn) {
+      for (size_t s = 0; s < na && !rc; s += MS_CHUNK) {
+        size_t m = na - s < MS_CHUNK ? na - s : MS_CHUNK;
+        rc = gfn(ud, m, qx + s, qy + s, qf + s, gx + s, gy + s, e);
+      }
+    } else {
+      rc = gr_ms_eval(fn, ud, na, qx, qy, qf, e);
+    }
+    if (rc) goto done;
+    size_t keep = 0;
+    for (size_t i = 0; i < na; i++) {
+      size_t k = act[i];
+      double f = qf[i], t = qt[i];
+      if (f < 0) {
+        ta[k] = t; fa[k] = f;
+        if (side[k] == -1) fb[k] *= 0.5;
+        side[k] = -1;
+      } else {
+        tb[k] = t; fb[k] = f;
+        if (side[k] == 1) fa[k] *= 0.5;
+        side[k] = 1;
+      }
+      if (f == 0) { ta[k] = tb[k] = t; continue; }
+      if (gfn) {
+        double dt = gx[i] * (Q[2 * k] - P[2 * k]) + gy[i] * (Q[2 * k + 1] - P[2 * k + 1]);
+        double step = dt > 0 ? -f / dt : NAN;
+        tn[k] = t + step;
+        if (fabs(step) * len[k] < tol && tn[k] >= ta[k] && tn[k] <= tb[k]) { ta[k] = tb[k] = tn[k]; continue; }
+      }
+      if ((tb[k] - ta[k]) * len[k] > tol) act[keep++] = k;
+    }
+    na = keep;
+  }
+  for (size_t k = 0; k < n; k++) {
+    double t;
+    if (ta[k] == tb[k]) t = ta[k];
+    else if (fb[k] == 0) t = tb[k];
+    else {
+      /* final linear estimate inside the (tiny) bracket; with the original
+       * values this is plain linear interpolation when refine is off */
+      double A = refine ? fa[k] : fp[k], B = refine ? fb[k] : fq[k];
+      t = ta[k] + (tb[k] - ta[k]) * (A / (A - B));
+      if (!(t >= ta[k] && t <= tb[k])) t = 0.5 * (ta[k] + tb[k]);
+    }
+    out[2 * k] = P[2 * k] + t * (Q[2 * k] - P[2 * k]);
+    out[2 * k + 1] = P[2 * k + 1] + t * (Q[2 * k + 1] - P[2 * k + 1]);
+  }
+done:
+  free(ta); free(tb); free(fa); free(fb); free(len); free(tn); free(side); free(act);
+  free(qx); free(qy); free(qt); free(qf); free(gx); free(gy);
+  return rc;
+}
+
+/* ---- marching squares ---- */
+
+
+static double node_x(const gr_ms_grid *g, int I) {
+  int i = I - 1;
+  if (i < 0) i = 0;
+  if (i > g->nx - 1) i = g->nx - 1;
+  return i == g->nx - 1 ? g->x0 + (g->nx - 1) * g->hx : g->x0 + i * g->hx;
+}
+static double node_y(const gr_ms_grid *g, int J) {
+  int j = J - 1;
+  if (j < 0) j = 0;
+  if (j > g->ny - 1) j = g->ny - 1;
+  return g->y0 + j * g->hy;
+}
+/* Value at padded node (I, J): pad nodes are outside (+1). */
+static double node_v(const gr_ms_grid *g, int I, int J) {
+  if (I < 1 || J < 1 || I > g->nx || J > g->ny) return 1.0;
+  return g->v[(I - 1) + (size_t)g->nx * (J - 1)];
+}
+
+/* Remove consecutive duplicates of the ring being built in `tmp` (xy, n
+ * points) and append it to out if it keeps >= 3 points and nonzero area. */
+int gr_ms_emit_ring(gr_rings *out, double *xy, size_t n) {
+  size_t m = 0;
+  for (size_t k = 0; k < n; k++) {
+    if (m > 0 && xy[2 * k] == xy[2 * (m - 1)] && xy[2 * k + 1] == xy[2 * (m - 1) + 1]) continue;
+    xy[2 * m] = xy[2 * k];
+    xy[2 * m + 1] = xy[2 * k + 1];
+    m++;
+  }
+  while (m > 1 && xy[0] == xy[2 * (m - 1)] && xy[1] == xy[2 * (m - 1) + 1]) m--;
+  if (m < 3) return GR_OK;
+  double a = 0;
+  for (size_t k = 0, j = m - 1; k < m; j = k++)
+    a += (xy[2 * j] - xy[0]) * (xy[2 * k + 1] - xy[1]) - (xy[2 * k] - xy[0]) * (xy[2 * j + 1] - xy[1]);
+  if (a == 0) return GR_OK;
+  return gr_rings_add(out, xy, m);
+}
+
+/* Contour {fn < 0} from the sampled grid: crossings on grid edges refined on
+ * fn, saddles decided by fn at the cell centre, segments oriented with the
+ * inside on the left and chained by edge id into closed rings (appended to
+ * out, not nested). */
+int gr_ms_contour(const gr_ms_grid *g, gr_slice_fn fn, gr_slice_grad_fn gfn, void *ud, int refine,
+                      double tol, gr_rings *out, gr_err *e) {
+  int NX = g->nx + 2, NY = g->ny + 2;
+  size_t nedge = 2 * (size_t)NX * NY;
+  int rc = GR_OK;
+  int *cross = malloc(nedge * sizeof *cross);
+  double *P = NULL, *Q = NULL, *fp = NULL, *fq = NULL, *pt = NULL;
+  int *next = NULL, *sad = NULL;
+  double *cx = NULL, *cy = NULL, *cv = NULL, *ring = NULL;
+  size_t ncr = 0, capcr = 0, nsad = 0, capsad = 0;
+  if (!cross) return gr_fail(e, GR_EMEM, "out of memory: marching squares on %dx%d nodes", g->nx, g->ny);
+  /* 1. crossing edges: H(I,J) = (I,J)-(I+1,J) id 2*(I+NX*J); V(I,J) = (I,J)-(I,J+1) id +1 */
+  for (int J = 0; J < NY; J++)
+    for (int I = 0; I < NX; I++) {
+      double v0 = node_v(g, I, J);
+      for (int dir = 0; dir < 2; dir++) {
+        size_t id = 2 * ((size_t)I + (size_t)NX * J) + dir;
+        cross[id] = -1;
+        int I1 = I + (dir == 0), J1 = J + (dir == 1);
+        if (I1 >= NX || J1 >= NY) continue;
+        double v1 = node_v(g, I1, J1);
+        if ((v0 < 0) == (v1 < 0)) continue;
+        if (ncr + 1 > capcr) {
+          size_t c = capcr;
+          if (gr_grow(&P, &c, ncr + 1, 2 * sizeof(double)) || (c = capcr, gr_grow(&Q, &c, ncr + 1, 2 * sizeof(double))) ||
+              (c = capcr, gr_grow(&fp, &c, ncr + 1, sizeof(double))) || (c = capcr, gr_grow(&fq, &c, ncr + 1, sizeof(double)))) {
+            rc = gr_fail(e, GR_EMEM, "out of memory: %zu crossings", ncr);
+            goto done;
+          }
+          capcr = c;
+        }
+        /* inside end first */
+        int inI = v0 < 0 ? I : I1, inJ = v0 < 0 ? J : J1;
+        int ouI = v0 < 0 ? I1 : I, ouJ = v0 < 0 ? J1 : J;
+        P[2 * ncr] = node_x(g, inI); P[2 * ncr + 1] = node_y(g, inJ);
+        Q[2 * ncr] = node_x(g, ouI); Q[2 * ncr + 1] = node_y(g, ouJ);
+        fp[ncr] = v0 < 0 ? v0 : v1;
+        fq[ncr] = v0 < 0 ? v1 : v0;
+        cross[id] = (int)ncr++;
+      }
+    }
+  if (ncr == 0) goto done;
+  pt = malloc(2 * ncr * sizeof *pt);
+  next = malloc(ncr * sizeof *next);
+  if (!pt || !next) { rc = gr_fail(e, GR_EMEM, "out of memory: %zu crossings", ncr); goto done; }
+  rc = roots_batch(fn, gfn, ud, ncr, P, Q, fp, fq, refine, tol, pt, e);
+  if (rc) goto done;
+  /* 2. saddle cells: centre value on the true function */
+  for (int J = 0; J + 1 < NY; J++)
+    for (int I = 0; I + 1 < NX; I++) {
+      int a = node_v(g, I, J) < 0, b = node_v(g, I + 1, J) < 0;
+      int c = node_v(g, I + 1, J + 1) < 0, d = node_v(g, I, J + 1) < 0;
+      if (!((a && c && !b && !d) || (b && d && !a && !c))) continue;
+      if (nsad + 1 > capsad) {
+        size_t cc = capsad;
+        if (gr_grow(&sad, &cc, nsad + 1, 2 * sizeof(int)) || (cc = capsad, gr_grow(&cx, &cc, nsad + 1, sizeof(double))) ||
+            (cc = capsad, gr_grow(&cy, &cc, nsad + 1, sizeof(double))) || (cc = capsad, gr_grow(&cv, &cc, nsad + 1, sizeof(double)))) {
+          rc = gr_fail(e, GR_EMEM, "out of memory: %zu saddles", nsad);
+          goto done;
+        }
+        capsad = cc;
+      }
+      sad[2 * nsad] = I; sad[2 * nsad + 1] = J;
+      cx[nsad] = 0.5 * (node_x(g, I) + node_x(g, I + 1));
+      cy[nsad] = 0.5 * (node_y(g, J) + node_y(g, J + 1));
+      nsad++;
+    }
+  if (nsad) {
+    rc = gr_ms_eval(fn, ud, nsad, cx, cy, cv, e);
+    if (rc) goto done;
+  }
+  /* 3. segments: walk the cell boundary CCW (edges e0 bottom, e1 right,
+   * e2 top, e3 left); an in->out crossing X is joined to the out->in
+   * crossing Y that follows it (centre inside) or precedes it (outside). */
+  for (size_t k = 0; k < ncr; k++) next[k] = -1;
+  size_t s = 0;
+  for (int J = 0; J + 1 < NY; J++)
+    for (int I = 0; I + 1 < NX; I++) {
+      int ins[4] = {node_v(g, I, J) < 0, node_v(g, I + 1, J) < 0,
+                    node_v(g, I + 1, J + 1) < 0, node_v(g, I, J + 1) < 0};
+      int m = ins[0] | ins[1] << 1 | ins[2] << 2 | ins[3] << 3;
+      if (m == 0 || m == 15) continue;
+      size_t ids[4] = {2 * ((size_t)I + (size_t)NX * J), 2 * ((size_t)I + 1 + (size_t)NX * J) + 1,
+                       2 * ((size_t)I + (size_t)NX * (J + 1)), 2 * ((size_t)I + (size_t)NX * J) + 1};
+      int centre_in = 0;
+      if (m == 5 || m == 10) {
+        while (s < nsad && (sad[2 * s + 1] < J || (sad[2 * s + 1] == J && sad[2 * s] < I))) s++;
+        centre_in = s < nsad && sad[2 * s] == I && sad[2 * s + 1] == J && cv[s] < 0;
+      }
+      for (int k = 0; k < 4; k++) {
+        if (!(ins[k] && !ins[(k + 1) & 3])) continue; /* X at edge k */
+        int y = -1;
+        if (centre_in) {
+          for (int q = 1; q < 4; q++) { int kk = (k + q) & 3; if (!ins[kk] && ins[(kk + 1) & 3]) { y = kk; break; } }
+        } else {
+          for (int q = 1; q < 4; q++) { int kk = (k - q + 4) & 3; if (!ins[kk] && ins[(kk + 1) & 3]) { y = kk; break; } }
+        }
+        if (y < 0) continue;
+        next[cross[ids[k]]] = cross[ids[y]];
+      }
+    }
+  /* 4. chain */
+  ring = malloc(2 * (ncr + 1) * sizeof *ring);
+  if (!ring) { rc = gr_fail(e, GR_EMEM, "out of memory: %zu crossings", ncr); goto done; }
+  for (size_t k = 0; k < ncr; k++) {
+    if (next[k] < 0) continue;
+    size_t n = 0;
+    int c = (int)k;
+    while (c >= 0 && next[c] >= 0) {
+      ring[2 * n] = pt[2 * c];
+      ring[2 * n + 1] = pt[2 * c + 1];
+      n++;
+      int nc = next[c];
+      next[c] = -1;
+      c = nc;
+    }
+    rc = gr_ms_emit_ring(out, ring, n);
+    if (rc) { rc = gr_fail(e, GR_EMEM, "out of memory storing rings"); goto done; }
+  }
+done:
+  free(cross); free(P); free(Q); free(fp); free(fq); free(pt); free(next);
+  free(sad); free(cx); free(cy); free(cv); free(ring);
+  return rc;
+}
+
+/* Chords by Newton along the normal from the midpoint (value and gradient):
+ * one evaluation settles chords whose zero set is well inside chord_tol; the
+ * others converge in one or two more, and a converged root more than
+ * chord_tol from the midpoint becomes an insertion (ins[seg] = 1 + index into
+ * ipt). Chords Newton cannot settle (flat gradient, a step leaving the
+ * bracket) stay in the candidate arrays (compacted, *m updated) for
+ * bracketing. */
+static int chord_newton(gr_slice_grad_fn gfn, void *ud, double tol, double chord_tol,
+                        double *ax, double *ay, double *bx, double *by, size_t *seg, size_t *m,
+                        int *ins, double *ipt, size_t *nins, gr_err *e) {
+  size_t n = *m;
+  double *mx = malloc(n * sizeof *mx), *my = malloc(n * sizeof *my), *t = calloc(n, sizeof *t);
+  double *qx = malloc(n * sizeof *qx), *qy = malloc(n * sizeof *qy), *f = malloc(n * sizeof *f);
+  double *gx = malloc(n * sizeof *gx), *gy = malloc(n * sizeof *gy);
+  size_t *act = malloc(n * sizeof *act);
+  unsigned char *left = calloc(n, 1); /* 1: bracket it */
+  int rc = GR_OK;
+  if (!mx || !my || !t || !qx || !qy || !f || !gx || !gy || !act || !left) {
+    rc = gr_fail(e, GR_EMEM, "out of memory refining chords");
+    goto done;
+  }
+  size_t na = n;
+  for (size_t k = 0; k < n; k++) {
+    mx[k] = 0.5 * (ax[k] + bx[k]);
+    my[k] = 0.5 * (ay[k] + by[k]);
+    act[k] = k;
+  }
+  for (int it = 0; it < 6 && na > 0; it++) {
+    for (size_t i = 0; i < na; i++) {
+      size_t k = act[i];
+      double h = hypot(bx[k] - mx[k], by[k] - my[k]);
+      qx[i] = mx[k] + t[k] * (bx[k] - mx[k]) / h;
+      qy[i] = my[k] + t[k] * (by[k] - my[k]) / h;
+    }
+    for (size_t s = 0; s < na && !rc; s += MS_CHUNK) {
+      size_t c = na - s < MS_CHUNK ? na - s : MS_CHUNK;
+      rc = gfn(ud, c, qx + s, qy + s, f + s, gx + s, gy + s, e);
+    }
+    if (rc) goto done;
+    size_t keep = 0;
+    for (size_t i = 0; i < na; i++) {
+      size_t k = act[i];
+      double h = hypot(bx[k] - mx[k], by[k] - my[k]);
+      double dn = (gx[i] * (bx[k] - mx[k]) + gy[i] * (by[k] - my[k])) / h;
+      double step = dn > 0.5 ? -f[i] / dn : NAN;
+      if (!isfinite(step) || fabs(t[k] + step) > h) { left[k] = 1; continue; }
+      t[k] += step;
+      if (it == 0 && fabs(t[k]) < 0.9 * chord_tol) continue; /* the chord is fine */
+      if (fabs(step) < tol) {                                 /* converged */
+        if (fabs(t[k]) > chord_tol) {
+          ipt[2 * *nins] = mx[k] + t[k] * (bx[k] - mx[k]) / h;
+          ipt[2 * *nins + 1] = my[k] + t[k] * (by[k] - my[k]) / h;
+          ins[seg[k]] = (int)++*nins;
+        }
+        continue;
+      }
+      act[keep++] = k;
+    }
+    na = keep;
+  }
+  for (size_t i = 0; i < na; i++) left[act[i]] = 1; /* not converged */
+  size_t q = 0;
+  for (size_t k = 0; k < n; k++) {
+    if (!left[k]) continue;
+    ax[q] = ax[k]; ay[q] = ay[k]; bx[q] = bx[k]; by[q] = by[k]; seg[q] = seg[k];
+    q++;
+  }
+  *m = q;
+done:
+  free(mx); free(my); free(t); free(qx); free(qy); free(f); free(gx); free(gy); free(act); free(left);
+  return rc;
+}
+
+/* a segment along the window border is exact */
+static int on_border(const gr_ms_win *w, const double *a, const double *b) {
+  if (!w->on) return 0;
+  for (int c = 0; c < 2; c++)
+    if ((a[c] == w->lo[c] && b[c] == w->lo[c]) || (a[c] == w->hi[c] && b[c] == w->hi[c])) return 1;
+  return 0;
+}
+
+/* Chord accuracy pass: for each ring segment, find the zero of fn on the
+ * normal line through the chord midpoint (bracket +-half the chord); where
+ * it lies more than chord_tol from the midpoint, insert it. Repeats until no
+ * insertion (at most 12 passes). Rings in `r` are rewritten. */
+int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *ud, double tol,
+                        double chord_tol, const gr_ms_win *w, gr_err *e) {
+  int rc = GR_OK;
+  gr_rings *nr = gr_rings_new();
+  /* ok[i]: the chord from point i was checked (only new chords are checked
+   * in later passes) */
+  unsigned char *ok = calloc(r->npts + 1, 1);
+  if (!nr || !ok) { gr_rings_free(nr); free(ok); return gr_fail(e, GR_EMEM, "out of memory refining chords"); }
+  for (int pass = 0; pass < 12; pass++) {
+    size_t n = r->npts;
+    /* per candidate chord: bracket ends a, b (+-half the chord along the
+     * outward normal through the midpoint) and its first point's index */
+    double *ax = malloc(n * sizeof *ax + 1), *ay = malloc(n * sizeof *ay + 1);
+    double *bx = malloc(n * sizeof *bx + 1), *by = malloc(n * sizeof *by + 1);
+    double *fa = malloc(n * sizeof *fa + 1), *fb = malloc(n * sizeof *fb + 1);
+    double *A = malloc(2 * n * sizeof *A + 1), *B = malloc(2 * n * sizeof *B + 1);
+    double *root = malloc(2 * n * sizeof *root + 1), *ipt = malloc(2 * n * sizeof *ipt + 1);
+    int *ins = calloc(n + 1, sizeof *ins);
+    size_t *seg = malloc(n * sizeof *seg + 1);
+    unsigned char *ok2 = NULL;
+    size_t nins = 0;
+    if (!ax || !ay || !bx || !by || !fa || !fb || !A || !B || !root || !ipt || !ins || !seg) {
+      rc = gr_fail(e, GR_EMEM, "out of memory refining chords");
+      goto pass_done;
+    }
+    size_t m = 0;
+    for (size_t i = 0; i < r->nrings; i++) {
+      size_t len = gr_ring_len(r, i), st = r->start[i];
+      const double *p = gr_ring_xy(r, i);
+      for (size_t k = 0; k < len; k++) {
+        if (ok[st + k]) continue;
+        const double *a = p + 2 * k, *b = p + 2 * ((k + 1) % len);
+        if (on_border(w, a, b)) continue;
+        double dx = b[0] - a[0], dy = b[1] - a[1], L = hypot(dx, dy);
+        if (L <= 2 * chord_tol) continue;
+        double mx = 0.5 * (a[0] + b[0]), my = 0.5 * (a[1] + b[1]);
+        double nx = dy / L, ny = -dx / L, h = 0.5 * L; /* right normal: outside */
+        ax[m] = mx - h * nx; ay[m] = my - h * ny;
+        bx[m] = mx + h * nx; by[m] = my + h * ny;
+        seg[m] = st + k;
+        m++;
+      }
+    }
+    if (m == 0) goto pass_done;
+    if (gfn && (rc = chord_newton(gfn, ud, tol, chord_tol, ax, ay, bx, by, seg, &m, ins, ipt, &nins, e)))
+      goto pass_done;
+    if ((rc = gr_ms_eval(fn, ud, m, ax, ay, fa, e)) || (rc = gr_ms_eval(fn, ud, m, bx, by, fb, e))) goto pass_done;
+    size_t q = 0;
+    for (size_t k = 0; k < m; k++) {
+      if (!(fa[k] < 0 && fb[k] >= 0)) continue;
+      A[2 * q] = ax[k]; A[2 * q + 1] = ay[k];
+      B[2 * q] = bx[k]; B[2 * q + 1] = by[k];
+      fa[q] = fa[k]; fb[q] = fb[k]; seg[q] = seg[k];
+      q++;
+    }
+    rc = roots_batch(fn, gfn, ud, q, A, B, fa, fb, 1, tol, root, e);
+    if (rc) goto pass_done;
+    /* mark insertions: ins[global point index] = 1 + index into ipt */
+    for (size_t k = 0; k < q; k++) {
+      double mx = 0.5 * (A[2 * k] + B[2 * k]), my = 0.5 * (A[2 * k + 1] + B[2 * k + 1]);
+      if (hypot(root[2 * k] - mx, root[2 * k + 1] - my) > chord_tol) {
+        ipt[2 * nins] = root[2 * k];
+        ipt[2 * nins + 1] = root[2 * k + 1];
+        ins[seg[k]] = (int)++nins;
+      }
+    }
+    if (nins) {
+      ok2 = calloc(n + nins + 1, 1);
+      if (!ok2) { rc = gr_fail(e, GR_EMEM, "out of memory refining chords"); goto pass_done; }
+      gr_rings_clear(nr);
+      size_t np = 0;
+      for (size_t i = 0; i < r->nrings && !rc; i++) {
+        size_t len = gr_ring_len(r, i), st = r->start[i];
+        const double *p = gr_ring_xy(r, i);
+        for (size_t k = 0; k < len && !rc; k++) {
+          rc = gr_rings_point(nr, p[2 * k], p[2 * k + 1]);
+          ok2[np++] = !ins[st + k];
+          if (!rc && ins[st + k]) {
+            size_t c = (size_t)ins[st + k] - 1;
+            rc = gr_rings_point(nr, ipt[2 * c], ipt[2 * c + 1]);
+            ok2[np++] = 0;
+          }
+        }
+        if (!rc) rc = gr_rings_close(nr);
+      }
+      if (rc) rc = gr_fail(e, GR_EMEM, "out of memory refining chords");
+      else rc = gr_rings_copy(r, nr) ? gr_fail(e, GR_EMEM, "out of memory refining chords") : GR_OK;
+      if (!rc) { free(ok); ok = ok2; ok2 = NULL; }
+    }
+  pass_done:
+    free(ax); free(ay); free(bx); free(by); free(fa); free(fb); free(A); free(B);
+    free(root); free(ipt); free(ins); free(seg); free(ok2);
+    if (rc || nins == 0) break;
+  }
+  gr_rings_free(nr);
+  free(ok);
+  return rc;
+}
+
+int gr_ms_check_window(const double lo[2], const double hi[2], double cell,
+                        double tol, gr_err *e) {
+  for (int c = 0; c < 2; c++) {
+    if (!isfinite(lo[c]) || !isfinite(hi[c]) || !(hi[c] > lo[c]))
+      return gr_fail(e, GR_EARG, "window must have hi > lo, got %s lo %g, hi %g",
+                     c ? "y" : "x", lo[c], hi[c]);
+  }
+  if (!(cell > 0) || !isfinite(cell)) return gr_fail(e, GR_EARG, "cell must be > 0, got %g", cell);
+  if (!(tol > 0) || !isfinite(tol)) return gr_fail(e, GR_EARG, "tol must be > 0, got %g", tol);
+  double nx = ceil((hi[0] - lo[0]) / cell) + 1, ny = ceil((hi[1] - lo[1]) / cell) + 1;
+  if (nx * ny > (double)MS_MAX_NODES)
+    return gr_fail(e, GR_EMEM, "slice grid too large: %.0f x %.0f nodes for cell %g mm (limit %zu nodes)",
+                   nx, ny, cell, MS_MAX_NODES);
+  return GR_OK;
+}

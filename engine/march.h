@@ -1,0 +1,48 @@
+/* march.h: marching squares with refined crossings, the primitive under
+ * field sections (slice.h) and 2-D offsets of sections (polydist.c).
+ * Internal to the engine.
+ *
+ * Takes: values of a function sampled on a regular grid (inside: < 0) and
+ * the function itself. Gives: the closed rings of {f < 0}, inside on the
+ * left, with crossings refined on the function (Illinois or Newton) and
+ * chords refined until they deviate less than chord_tol from the curve. */
+#ifndef GR_MARCH_H
+#define GR_MARCH_H
+#include "slice.h"
+
+#define MS_CHUNK 65536
+#define MS_MAX_NODES ((size_t)1 << 27)
+
+/* A grid of nx*ny samples v[i + nx*j] at (x0 + i*hx, y0 + j*hy); inside is
+ * v < 0. The grid is padded (conceptually) by one ring of outside nodes
+ * placed at the positions of the border nodes, so that regions touching the
+ * window are closed along its border with no extra code. */
+typedef struct gr_ms_grid {
+  int nx, ny;
+  double x0, y0, hx, hy;
+  const double *v;
+} gr_ms_grid;
+
+/* Window test for the chord pass: a segment along the window border is exact. */
+typedef struct gr_ms_win { int on; double lo[2], hi[2]; } gr_ms_win;
+
+/* Evaluate fn at n points in chunks (keeps scratch buffers of callers small). */
+int gr_ms_eval(gr_slice_fn fn, void *ud, size_t n, const double *x, const double *y, double *out, gr_err *e);
+/* Contour {fn < 0} from the sampled grid: crossings on grid edges refined on
+ * fn, saddles decided by fn at the cell centre, segments oriented with the
+ * inside on the left and chained by edge id into closed rings (appended to
+ * out, not nested). */
+int gr_ms_contour(const gr_ms_grid *g, gr_slice_fn fn, gr_slice_grad_fn gfn, void *ud, int refine,
+                  double tol, gr_rings *out, gr_err *e);
+/* Chord accuracy pass over the rings of r (rewritten); w: the window whose
+ * border segments are exact. */
+int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *ud, double tol,
+                       double chord_tol, const gr_ms_win *w, gr_err *e);
+/* Append the ring xy (n points; consecutive duplicates removed) to out if it
+ * keeps >= 3 points and nonzero area. */
+int gr_ms_emit_ring(gr_rings *out, double *xy, size_t n);
+/* A slice window [lo, hi] with grid spacing cell and tolerance tol: errors
+ * name the bad value; too many nodes is GR_EMEM. */
+int gr_ms_check_window(const double lo[2], const double hi[2], double cell, double tol, gr_err *e);
+
+#endif

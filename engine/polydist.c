@@ -1,0 +1,340 @@
+/* polydist.c: signed 2-D distance to a set of rings and the in-plane
+ * offsets of sections built on it (slice.h: gr_offset_rings*,
+ * gr_rings_max_inner_distance, gr_polydist_*). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include "march.h"
+
+/* ---- 2-D distance to a polygon set (for offsets) ---- */
+
+typedef struct poly_dist {
+  size_t ne;            /* edges */
+  double *ab;           /* 4 per edge: ax ay bx by */
+  size_t *prv, *nxt;    /* neighbouring edges in the ring */
+  double lo[2];         /* bucket grid origin, mm */
+  double bs;            /* bucket size, mm */
+  int bx, by;           /* buckets per axis */
+  size_t *bstart, *bedge; /* CSR: edges of bucket k are bedge[bstart[k]..bstart[k+1]) */
+  double b;             /* offset distance, mm: fn returns sd + b */
+} poly_dist;
+
+static void pd_free(poly_dist *d) {
+  free(d->ab); free(d->prv); free(d->nxt); free(d->bstart); free(d->bedge);
+}
+
+static int left_of(const double *e4, double x, double y) {
+  return (e4[2] - e4[0]) * (y - e4[1]) - (e4[3] - e4[1]) * (x - e4[0]) > 0;
+}
+
+/* Nearest edge to (x, y) among edges within rmax (searching rings of buckets
+ * outward). Returns the squared distance (INFINITY if none within rmax) and
+ * the edge and parameter. */
+static double pd_nearest(const poly_dist *d, double x, double y, double rmax,
+                         size_t *edge, double *tpar) {
+  double best = INFINITY;
+  int ci = (int)floor((x - d->lo[0]) / d->bs), cj = (int)floor((y - d->lo[1]) / d->bs);
+  int kmax = (int)ceil(rmax / d->bs) + 1;
+  int lim = (d->bx > d->by ? d->bx : d->by) + 2;
+  if (kmax > lim + abs(ci) + abs(cj)) kmax = lim + abs(ci) + abs(cj);
+  for (int k = 0; k <= kmax; k++) {
+    for (int j = cj - k; j <= cj + k; j++) {
+      if (j < 0 || j >= d->by) continue;
+      int step = (j == cj - k || j == cj + k) ? 1 : 2 * k;
+      for (int i = ci - k; i <= ci + k; i += step ? step : 1) {
+        if (i >= 0 && i < d->bx) {
+          size_t bk = (size_t)i + (size_t)d->bx * j;
+          for (size_t q = d->bstart[bk]; q < d->bstart[bk + 1]; q++) {
+            size_t ed = d->bedge[q];
+            const double *p = d->ab + 4 * ed;
+            double ex = p[2] - p[0], ey = p[3] - p[1], L2 = ex * ex + ey * ey;
+            double t = L2 > 0 ? ((x - p[0]) * ex + (y - p[1]) * ey) / L2 : 0;
+            if (t < 0) t = 0;
+            if (t > 1) t = 1;
+            double qx = p[0] + t * ex - x, qy = p[1] + t * ey - y, d2 = qx * qx + qy * qy;
+            if (d2 < best) { best = d2; *edge = ed; *tpar = t; }
+          }
+        }
+        if (step == 0) break;
+      }
+    }
+    /* everything not yet searched is farther than k*bs from (x, y) when the
+     * point is inside bucket (ci, cj) */
+    double safe = k * d->bs;
+    if (best <= safe * safe) break;
+    if (safe > rmax) break;
+  }
+  if (best > rmax * rmax) return INFINITY;
+  return best;
+}
+
+/* Inside test from the nearest feature: rings are oriented (inside on the
+ * left of every edge); at a vertex, the point is inside the interior angle. */
+static int pd_inside(const poly_dist *d, size_t ed, double t, double x, double y) {
+  const double *p = d->ab + 4 * ed;
+  if (t > 0 && t < 1) return left_of(p, x, y);
+  const double *e1, *e2; /* incoming, outgoing edge at the vertex */
+  if (t <= 0) { e1 = d->ab + 4 * d->prv[ed]; e2 = p; }
+  else { e1 = p; e2 = d->ab + 4 * d->nxt[ed]; }
+  double turn = (e1[2] - e1[0]) * (e2[3] - e2[1]) - (e1[3] - e1[1]) * (e2[2] - e2[0]);
+  int l1 = left_of(e1, x, y), l2 = left_of(e2, x, y);
+  return turn > 0 ? (l1 && l2) : (l1 || l2);
+}
+
+/* Exact signed distance (negative inside) of (x, y) to the edges; q (may be
+ * NULL) receives the nearest boundary point. +INFINITY without edges. */
+static double pd_signed(const poly_dist *d, double x, double y, double q[2]) {
+  if (d->ne == 0) return INFINITY;
+  size_t ed = 0;
+  double t = 0, d2 = INFINITY;
+  for (double r = 2 * d->bs; !isfinite(d2); r *= 4) d2 = pd_nearest(d, x, y, r, &ed, &t);
+  const double *a = d->ab + 4 * ed;
+  if (q) { q[0] = a[0] + t * (a[2] - a[0]); q[1] = a[1] + t * (a[3] - a[1]); }
+  return pd_inside(d, ed, t, x, y) ? -sqrt(d2) : sqrt(d2);
+}
+
+/* Signed distance (negative inside) + b, exact. */
+static int pd_fn(void *ud, size_t n, const double *x, const double *y,
+                 double *out, gr_err *e) {
+  (void)e;
+  const poly_dist *d = ud;
+  for (size_t k = 0; k < n; k++) out[k] = pd_signed(d, x[k], y[k], NULL) + d->b;
+  return GR_OK;
+}
+
+/* Build edges and the bucket grid (bucket size about bs) of nested rings r. */
+static int pd_build(poly_dist *d, const gr_rings *r, double bs, gr_err *e) {
+  memset(d, 0, sizeof *d);
+  d->ne = r->npts;
+  d->ab = malloc(4 * d->ne * sizeof *d->ab + 1);
+  d->prv = malloc(d->ne * sizeof *d->prv + 1);
+  d->nxt = malloc(d->ne * sizeof *d->nxt + 1);
+  if (!d->ab || !d->prv || !d->nxt) return gr_fail(e, GR_EMEM, "out of memory: %zu edges", d->ne);
+  double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+  for (size_t i = 0; i < r->nrings; i++) {
+    size_t n = gr_ring_len(r, i), st = r->start[i];
+    const double *p = gr_ring_xy(r, i);
+    for (size_t k = 0; k < n; k++) {
+      size_t k1 = (k + 1) % n;
+      double *a = d->ab + 4 * (st + k);
+      a[0] = p[2 * k]; a[1] = p[2 * k + 1]; a[2] = p[2 * k1]; a[3] = p[2 * k1 + 1];
+      d->prv[st + k] = st + (k + n - 1) % n;
+      d->nxt[st + k] = st + k1;
+      for (int c = 0; c < 2; c++) { lo[c] = fmin(lo[c], a[c]); hi[c] = fmax(hi[c], a[c]); }
+    }
+  }
+  double w = fmax(hi[0] - lo[0], hi[1] - lo[1]);
+  if (!(bs > 0)) bs = w / 16;
+  /* at most ~4 buckets per edge and 4M buckets */
+  double maxb = fmin(4.0 * (double)d->ne + 16, 4e6);
+  while (((hi[0] - lo[0]) / bs + 1) * ((hi[1] - lo[1]) / bs + 1) > maxb) bs *= 1.5;
+  if (!(bs > 0)) bs = 1;
+  d->bs = bs;
+  d->lo[0] = lo[0]; d->lo[1] = lo[1];
+  d->bx = (int)floor((hi[0] - lo[0]) / bs) + 1;
+  d->by = (int)floor((hi[1] - lo[1]) / bs) + 1;
+  size_t nb = (size_t)d->bx * d->by;
+  d->bstart = calloc(nb + 1, sizeof *d->bstart);
+  if (!d->bstart) return gr_fail(e, GR_EMEM, "out of memory: %zu buckets", nb);
+  for (int pass = 0; pass < 2; pass++) {
+    for (size_t ed = 0; ed < d->ne; ed++) {
+      const double *a = d->ab + 4 * ed;
+      int i0 = (int)floor((fmin(a[0], a[2]) - lo[0]) / bs), i1 = (int)floor((fmax(a[0], a[2]) - lo[0]) / bs);
+      int j0 = (int)floor((fmin(a[1], a[3]) - lo[1]) / bs), j1 = (int)floor((fmax(a[1], a[3]) - lo[1]) / bs);
+      if (i1 >= d->bx) i1 = d->bx - 1;
+      if (j1 >= d->by) j1 = d->by - 1;
+      for (int j = j0; j <= j1; j++)
+        for (int i = i0; i <= i1; i++) {
+          size_t bk = (size_t)i + (size_t)d->bx * j;
+          if (pass == 0) d->bstart[bk + 1]++;
+          else d->bedge[d->bstart[bk]++] = ed;
+        }
+    }
+    if (pass == 0) {
+      for (size_t k = 0; k < nb; k++) d->bstart[k + 1] += d->bstart[k];
+      d->bedge = malloc(d->bstart[nb] * sizeof *d->bedge + 1);
+      if (!d->bedge) return gr_fail(e, GR_EMEM, "out of memory: %zu bucket entries", d->bstart[nb]);
+    } else {
+      for (size_t k = nb; k > 0; k--) d->bstart[k] = d->bstart[k - 1];
+      d->bstart[0] = 0;
+    }
+  }
+  return GR_OK;
+}
+
+static int cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return x < y ? -1 : x > y;
+}
+
+/* Sample sd + b on the grid g (v allocated by the caller): the sign by the
+ * even-odd rule along each row (exact), the distance from the buckets
+ * within rmax (clamped to rmax farther away). */
+static int pd_sample(const poly_dist *d, const gr_ms_grid *g, double *v,
+                     double rmax, gr_err *e) {
+  double *xs = malloc((d->ne + 1) * sizeof *xs);
+  if (!xs) return gr_fail(e, GR_EMEM, "out of memory: %zu edges", d->ne);
+  /* squared distances: each edge updates the nodes within rmax of it */
+  size_t nn = (size_t)g->nx * g->ny;
+  for (size_t k = 0; k < nn; k++) v[k] = INFINITY;
+  for (size_t ed = 0; ed < d->ne; ed++) {
+    const double *p = d->ab + 4 * ed;
+    double ex = p[2] - p[0], ey = p[3] - p[1], L2 = ex * ex + ey * ey;
+    int i0 = (int)floor((fmin(p[0], p[2]) - rmax - g->x0) / g->hx), i1 = (int)ceil((fmax(p[0], p[2]) + rmax - g->x0) / g->hx);
+    int j0 = (int)floor((fmin(p[1], p[3]) - rmax - g->y0) / g->hy), j1 = (int)ceil((fmax(p[1], p[3]) + rmax - g->y0) / g->hy);
+    if (i0 < 0) i0 = 0;
+    if (j0 < 0) j0 = 0;
+    if (i1 > g->nx - 1) i1 = g->nx - 1;
+    if (j1 > g->ny - 1) j1 = g->ny - 1;
+    for (int j = j0; j <= j1; j++) {
+      double y = g->y0 + j * g->hy;
+      double *row = v + (size_t)g->nx * j;
+      for (int i = i0; i <= i1; i++) {
+        double x = g->x0 + i * g->hx;
+        double t = L2 > 0 ? ((x - p[0]) * ex + (y - p[1]) * ey) / L2 : 0;
+        t = t < 0 ? 0 : t > 1 ? 1 : t;
+        double qx = p[0] + t * ex - x, qy = p[1] + t * ey - y, d2 = qx * qx + qy * qy;
+        if (d2 < row[i]) row[i] = d2;
+      }
+    }
+  }
+  /* signs by scan-line parity */
+  for (int j = 0; j < g->ny; j++) {
+    double y = g->y0 + j * g->hy;
+    size_t nc = 0;
+    for (size_t ed = 0; ed < d->ne; ed++) {
+      const double *a = d->ab + 4 * ed;
+      if ((a[1] > y) != (a[3] > y)) xs[nc++] = a[0] + (y - a[1]) * (a[2] - a[0]) / (a[3] - a[1]);
+    }
+    qsort(xs, nc, sizeof *xs, cmp_double);
+    size_t c = 0;
+    for (int i = 0; i < g->nx; i++) {
+      double x = g->x0 + i * g->hx;
+      while (c < nc && xs[c] <= x) c++;
+      int in = c & 1;
+      double *vv = v + i + (size_t)g->nx * j;
+      double dist = *vv <= rmax * rmax ? sqrt(*vv) : rmax;
+      *vv = (in ? -dist : dist) + d->b;
+    }
+  }
+  free(xs);
+  return GR_OK;
+}
+
+/* Grid over the bounding box of r with cell <= cell; fails if too large. */
+static int bbox_grid(const gr_rings *r, double cell, gr_ms_grid *g, gr_err *e) {
+  double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+  for (size_t k = 0; k < r->npts; k++)
+    for (int c = 0; c < 2; c++) { lo[c] = fmin(lo[c], r->xy[2 * k + c]); hi[c] = fmax(hi[c], r->xy[2 * k + c]); }
+  for (int c = 0; c < 2; c++)
+    if (!isfinite(lo[c]) || !isfinite(hi[c])) return gr_fail(e, GR_ENUM, "rings have a non-finite coordinate");
+  for (int c = 0; c < 2; c++) if (hi[c] - lo[c] < cell) { double m = 0.5 * (lo[c] + hi[c]); lo[c] = m - cell / 2; hi[c] = m + cell / 2; }
+  int rc = gr_ms_check_window(lo, hi, cell, 1, e);
+  if (rc) return rc;
+  g->nx = (int)ceil((hi[0] - lo[0]) / cell) + 1;
+  g->ny = (int)ceil((hi[1] - lo[1]) / cell) + 1;
+  g->x0 = lo[0]; g->y0 = lo[1];
+  g->hx = (hi[0] - lo[0]) / (g->nx - 1);
+  g->hy = (hi[1] - lo[1]) / (g->ny - 1);
+  return GR_OK;
+}
+
+int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
+                        double chord_tol, gr_rings *out, gr_err *e) {
+  if (!(b >= 0) || !isfinite(b)) return gr_fail(e, GR_EARG, "offset distance b must be >= 0, got %g", b);
+  if (!(cell > 0) || !isfinite(cell)) return gr_fail(e, GR_EARG, "cell must be > 0, got %g", cell);
+  if (!(tol > 0) || !isfinite(tol)) return gr_fail(e, GR_EARG, "tol must be > 0, got %g", tol);
+  if (!(chord_tol >= 0) || !isfinite(chord_tol)) return gr_fail(e, GR_EARG, "chord_tol must be >= 0, got %g", chord_tol);
+  gr_rings *src = gr_rings_new();
+  if (!src) return gr_fail(e, GR_EMEM, "out of memory copying rings");
+  int rc = gr_rings_copy(src, in) ? gr_fail(e, GR_EMEM, "out of memory copying rings") : GR_OK;
+  if (!rc) rc = gr_rings_nest(src, e);
+  if (rc || b == 0 || src->nrings == 0) {
+    if (!rc) rc = gr_rings_copy(out, src) ? gr_fail(e, GR_EMEM, "out of memory copying rings") : GR_OK;
+    if (!rc) rc = gr_rings_nest(out, e);
+    gr_rings_free(src);
+    return rc;
+  }
+  poly_dist d;
+  gr_ms_grid g;
+  double *v = NULL;
+  rc = bbox_grid(src, cell, &g, e);
+  if (rc) { gr_rings_free(src); return rc; }
+  double rmax = b + 2 * fmax(g.hx, g.hy);
+  rc = pd_build(&d, src, rmax, e);
+  d.b = b;
+  if (!rc) {
+    v = malloc((size_t)g.nx * g.ny * sizeof *v);
+    if (!v) rc = gr_fail(e, GR_EMEM, "out of memory: offset grid %d x %d", g.nx, g.ny);
+  }
+  if (!rc) rc = pd_sample(&d, &g, v, rmax, e);
+  if (!rc) {
+    g.v = v;
+    gr_rings_clear(out);
+    rc = gr_ms_contour(&g, pd_fn, NULL, &d, 1, tol, out, e);
+  }
+  if (!rc && chord_tol > 0) {
+    gr_ms_win w = {0, {0, 0}, {0, 0}};
+    rc = gr_ms_chord_refine(out, pd_fn, NULL, &d, tol, chord_tol, &w, e);
+  }
+  if (!rc) rc = gr_rings_nest(out, e);
+  free(v);
+  pd_free(&d);
+  gr_rings_free(src);
+  return rc;
+}
+
+int gr_offset_rings(const gr_rings *in, double b, double cell, gr_rings *out,
+                    gr_err *e) {
+  return gr_offset_rings_opt(in, b, cell, 1e-6, 0, out, e);
+}
+
+double gr_rings_max_inner_distance(const gr_rings *in, double cell, gr_err *e) {
+  if (!(cell > 0) || !isfinite(cell)) { gr_fail(e, GR_EARG, "cell must be > 0, got %g", cell); return -1; }
+  if (!in || in->nrings == 0) return 0;
+  gr_rings *src = gr_rings_new();
+  if (!src || gr_rings_copy(src, in)) { gr_rings_free(src); gr_fail(e, GR_EMEM, "out of memory copying rings"); return -1; }
+  poly_dist d;
+  gr_ms_grid g;
+  double *v = NULL, best = 0;
+  int rc = gr_rings_nest(src, e);
+  if (!rc) rc = bbox_grid(src, cell, &g, e);
+  if (rc) { gr_rings_free(src); return -1; }
+  double w = fmax((g.nx - 1) * g.hx, (g.ny - 1) * g.hy);
+  rc = pd_build(&d, src, fmax(4 * cell, w / 64), e);
+  d.b = 0;
+  if (!rc) {
+    v = malloc((size_t)g.nx * g.ny * sizeof *v);
+    if (!v) rc = gr_fail(e, GR_EMEM, "out of memory: grid %d x %d", g.nx, g.ny);
+  }
+  if (!rc) rc = pd_sample(&d, &g, v, 2 * w + 1, e);
+  if (!rc)
+    for (size_t k = 0; k < (size_t)g.nx * g.ny; k++) best = fmax(best, -v[k]);
+  free(v);
+  pd_free(&d);
+  gr_rings_free(src);
+  return rc ? -1 : best;
+}
+
+struct gr_polydist { poly_dist d; };
+
+gr_polydist *gr_polydist_new(const gr_rings *r, double bucket, gr_err *e) {
+  gr_polydist *p = calloc(1, sizeof *p);
+  if (!p) { gr_fail(e, GR_EMEM, "out of memory"); return NULL; }
+  if (pd_build(&p->d, r, bucket, e)) { pd_free(&p->d); free(p); return NULL; }
+  return p;
+}
+
+void gr_polydist_free(gr_polydist *p) {
+  if (!p) return;
+  pd_free(&p->d);
+  free(p);
+}
+
+double gr_polydist_at(const gr_polydist *p, double x, double y, double q[2]) { return pd_signed(&p->d, x, y, q); }
+
+int gr_polydist_grid(const gr_polydist *p, double x0, double y0, double h, int nx, int ny,
+                     double rmax, double *v, gr_err *e) {
+  gr_ms_grid g = {nx, ny, x0, y0, h, h, NULL};
+  return pd_sample(&p->d, &g, v, rmax, e);
+}

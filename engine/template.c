@@ -1,0 +1,333 @@
+/* template.c: one unique voxel to its layers of scan paths, see template.h. */
+#include "template.h"
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include "clip.h"
+#include "distance.h"
+#include "hatch.h"
+#include "verify.h"
+#include "version.h"
+
+void gr_tmpl_free(gr_tmpl *t) {
+  if (!t) return;
+  for (int i = 0; i < t->nl; i++) {
+    gr_rings_free(t->l[i].section);
+    gr_rings_free(t->l[i].region);
+    gr_layer_free(t->l[i].paths);
+    gr_layer_free(t->l[i].faces);
+  }
+  free(t->l);
+  free(t);
+}
+
+gr_tmpl *gr_tmpl_new(int ja, int jb) {
+  gr_tmpl *t = calloc(1, sizeof *t);
+  if (!t) return NULL;
+  t->j0 = ja;
+  t->nl = jb - ja;
+  t->l = calloc(t->nl > 0 ? t->nl : 1, sizeof *t->l);
+  if (!t->l) { free(t); return NULL; }
+  return t;
+}
+
+/* Chords of sections and contours deviate from the true curve by at most
+ * this (mm): refined midpoints are inserted where they would not. */
+#define CHORD_TOL 2e-4
+/* Hatch regions are simplified to this (mm): hatch ends move by at most this. */
+#define REGION_TOL 1e-4
+
+static int offset_fine(const gr_rings *in, double b, double cell, gr_rings *out, gr_err *e) {
+  return gr_offset_rings_opt(in, b, cell, 1e-6, 0, out, e);
+}
+
+
+/* ---- voxels on the part's boundary ----
+ * The part's section in a boundary voxel is the lattice section A cut by the
+ * voxel's outer sides. Eroding an intersection erodes each part, so its
+ * contour at offset c is (the contour of A at c, cut by the sides moved in by
+ * c) plus (the sides moved in by c, where they lie inside A's offset by c):
+ * the first from the template's contours, the second computed here once per
+ * template layer for the four sides, c = b, b + d, ... */
+
+/* Signed in-plane distance to the section boundary at t along the line
+ * (x0 + t ux, y0 + t uy), negative inside, clamped to +-R. Only edges near the
+ * line can be nearer than R; inside/outside from the crossings cr (sorted). */
+typedef struct fline {
+  double x0, y0, ux, uy, R;
+  const double *ed;  /* candidate edges (4 per edge) */
+  size_t ne;
+  const double *cr;  /* crossing parameters, sorted */
+  size_t nc;
+} fline;
+
+static double fline_value(const fline *f, double t) {
+  double px = f->x0 + t * f->ux, py = f->y0 + t * f->uy, best = f->R * f->R;
+  for (size_t k = 0; k < f->ne; k++) {
+    const double *a = f->ed + 4 * k;
+    double ex = a[2] - a[0], ey = a[3] - a[1], L2 = ex * ex + ey * ey;
+    double s = L2 > 0 ? ((px - a[0]) * ex + (py - a[1]) * ey) / L2 : 0;
+    s = s < 0 ? 0 : s > 1 ? 1 : s;
+    double dx = a[0] + s * ex - px, dy = a[1] + s * ey - py, d2 = dx * dx + dy * dy;
+    if (d2 < best) best = d2;
+  }
+  size_t below = 0;
+  while (below < f->nc && f->cr[below] < t) below++;
+  return (below & 1) ? -sqrt(best) : sqrt(best);
+}
+
+static int dbl_cmp(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+/* The side segment [ta, tb] of the line, oriented like the contours (the
+ * part on the left): down along x = c, up along x = L - c, and so on. */
+static int face_seg(gr_layer *l, const fline *f, int side, double ta, double tb) {
+  int rev = side == 0 || side == 3;
+  double a = rev ? tb : ta, b = rev ? ta : tb;
+  double seg[4] = {f->x0 + a * f->ux, f->y0 + a * f->uy, f->x0 + b * f->ux, f->y0 + b * f->uy};
+  return gr_layer_add(l, GR_OPEN, GR_CONTOUR, side, 2, seg, 2);
+}
+
+static int face_lines(const gr_job_opts *o, gr_tlayer *tl) {
+  if (!tl->faces && !(tl->faces = gr_layer_new(0))) return GR_EMEM;
+  gr_layer_clear(tl->faces, 0);
+  const gr_rings *r = tl->section;
+  double L = o->cell, b = o->beam_offset, d = o->hatch, step = o->slice_cell / 4;
+  int nc = o->contours;
+  if (nc <= 0 || r->npts == 0) return GR_OK;
+  double R = b + (nc - 1) * d + 2 * step;
+  double *ed = malloc(4 * r->npts * sizeof *ed), *cr = malloc((r->npts + 1) * sizeof *cr);
+  if (!ed || !cr) { free(ed); free(cr); return GR_EMEM; }
+  int rc = GR_OK;
+  for (int side = 0; side < 4 && rc == GR_OK; side++) {
+    int vert = side < 2; /* x = const */
+    for (int k = 0; k < nc && rc == GR_OK; k++) {
+      double c = b + k * d, pos = (side & 1) ? L - c : c;
+      fline f = {vert ? pos : 0, vert ? 0 : pos, vert ? 0 : 1, vert ? 1 : 0, R, ed, 0, cr, 0};
+      for (size_t i = 0; i < r->nrings; i++) {
+        const double *p = gr_ring_xy(r, i);
+        size_t n = gr_ring_len(r, i);
+        for (size_t a = 0; a < n; a++) {
+          const double *P = p + 2 * a, *Q = p + 2 * ((a + 1) % n);
+          double pa = vert ? P[0] : P[1], qa = vert ? Q[0] : Q[1];   /* across the line */
+          double pl = vert ? P[1] : P[0], ql = vert ? Q[1] : Q[0];   /* along it */
+          if ((pa > pos) != (qa > pos)) cr[f.nc++] = pl + (pos - pa) * (ql - pl) / (qa - pa);
+          if (fmin(pa, qa) <= pos + R && fmax(pa, qa) >= pos - R) {
+            double *e4 = ed + 4 * f.ne++;
+            e4[0] = P[0]; e4[1] = P[1]; e4[2] = Q[0]; e4[3] = Q[1];
+          }
+        }
+      }
+      qsort(cr, f.nc, sizeof *cr, dbl_cmp);
+      /* intervals of [0, L] where the value is <= -c: sample, then bisect the ends */
+      int ns = (int)ceil(L / step);
+      double t0 = 0, v0 = fline_value(&f, 0) + c, start = v0 <= 0 ? 0 : NAN;
+      for (int q = 1; q <= ns && rc == GR_OK; q++) {
+        double t1 = q == ns ? L : q * step, v1 = fline_value(&f, t1) + c;
+        if ((v0 <= 0) != (v1 <= 0)) {
+          double lo = t0, hi = t1, vlo = v0;
+          for (int it = 0; it < 40 && hi - lo > 1e-7; it++) {
+            double m = 0.5 * (lo + hi), vm = fline_value(&f, m) + c;
+            if ((vm <= 0) == (vlo <= 0)) { lo = m; vlo = vm; } else hi = m;
+          }
+          double tc = 0.5 * (lo + hi);
+          if (v1 <= 0) start = tc;
+          else {
+            if (tc > start && face_seg(tl->faces, &f, side, start, tc)) rc = GR_EMEM;
+            start = NAN;
+          }
+        }
+        t0 = t1;
+        v0 = v1;
+      }
+      if (rc == GR_OK && !isnan(start) && L > start && face_seg(tl->faces, &f, side, start, L)) rc = GR_EMEM;
+    }
+  }
+  free(ed);
+  free(cr);
+  return rc;
+}
+
+/* verify() one template layer: its contours and the hatches of its region
+ * (at the layer's angle) against its section, inside the voxel square. */
+static int verify_template_layer(const gr_job_opts *o, gr_tlayer *tl, double angle, gr_err *e) {
+  gr_layer *l = gr_layer_new(0);
+  if (!l) return gr_fail(e, GR_EMEM, "out of memory");
+  int rc = gr_layer_append(l, tl->paths, 0, 0) ? gr_fail(e, GR_EMEM, "out of memory") : GR_OK;
+  gr_hatch_opts ho = gr_hatch_defaults();
+  ho.spacing = o->hatch;
+  ho.angle = angle;
+  ho.contours = 0;
+  if (rc == GR_OK) rc = gr_hatch_region(tl->region, &ho, l, NULL, e);
+  gr_verify_opts vo = gr_verify_defaults();
+  vo.track = o->track;
+  vo.pixel = o->track / 10;
+  vo.offset = o->beam_offset;
+  vo.spacing = o->hatch;
+  vo.contours = o->contours > 0 ? o->contours : 1;
+  vo.clip = 1;
+  vo.clip_lo[0] = vo.clip_lo[1] = 0;
+  vo.clip_hi[0] = vo.clip_hi[1] = o->cell;
+  gr_verify_result vr;
+  if (rc == GR_OK && (rc = gr_verify_layer(tl->section, l, &vo, &vr, e)) == GR_OK) {
+    tl->q[0] = vr.pore;
+    tl->q[1] = vr.overmelt;
+    tl->q[2] = vr.max_dev;
+  }
+  gr_layer_free(l);
+  return rc;
+}
+
+/* Margin of a template's slice window around the voxel: whole grid cells,
+ * wide enough for the contours and hatch region of the voxel's edge. */
+double gr_tmpl_window(const gr_job_opts *o) {
+  double h = o->slice_cell;
+  return ceil((o->beam_offset + (o->contours + 1) * o->hatch + 2 * h) / h) * h;
+}
+
+/* Compute template layers [qa, qb) from the voxel's field f, through the
+ * shared closest points tab if not NULL (template.h). */
+int gr_tmpl_layers(const gr_tmpl_in *in, gr_tmpl *t, const gr_field *f, const gr_cptab *tab, int qa, int qb,
+                   gr_err *e) {
+  const gr_job_opts *opt = in->o;
+  const double *o = in->vo;
+  int g0 = in->g0;
+  double L = opt->cell, h = opt->slice_cell;
+  double m = gr_tmpl_window(opt);
+  gr_slice_opts so = gr_slice_defaults();
+  so.lo[0] = o[0] - m;
+  so.lo[1] = o[1] - m;
+  so.hi[0] = o[0] + L + m;
+  so.hi[1] = o[1] + L + m;
+  so.cell = h;
+  so.refine = 1;
+  so.chord_tol = CHORD_TOL;
+  double box_lo[2] = {0, 0}, box_hi[2] = {L, L};
+  gr_hatch_opts ho = gr_hatch_defaults();
+  ho.spacing = opt->hatch;
+  ho.beam_offset = opt->beam_offset;
+  ho.contours = opt->contours;
+  ho.cell = h;
+  ho.pattern = GR_PARALLEL;
+  ho.offset = offset_fine;
+  /* the window's cut edges are not walls: thin walls only where they reach the voxel */
+  ho.thin_box[0] = ho.thin_box[1] = -opt->beam_offset;
+  ho.thin_box[2] = ho.thin_box[3] = L + opt->beam_offset;
+  gr_layer *tmp = gr_layer_new(0);
+  double *buf = NULL;
+  size_t cap = 0;
+  int rc = tmp ? GR_OK : gr_fail(e, GR_EMEM, "out of memory");
+  for (int q = qa; q < qb && rc == GR_OK; q++) {
+    gr_tlayer *tl = &t->l[q];
+    tl->section = gr_rings_new();
+    tl->region = gr_rings_new();
+    tl->paths = gr_layer_new(0);
+    if (!tl->section || !tl->region || !tl->paths) { rc = gr_fail(e, GR_EMEM, "out of memory"); break; }
+    double z = gr_grid_mid(in->grid, g0 + t->j0 + q);
+    if ((rc = tab ? gr_cptab_slice(tab, f, o, q, z, &so, tl->section, e) : gr_slice_field(f, z, &so, tl->section, e))) break;
+    gr_rings_translate(tl->section, -o[0], -o[1]);
+    tl->area = gr_clip_area(tl->section, box_lo, box_hi);
+    /* contours and thin-wall scans of the window, clipped to the voxel */
+    gr_layer_clear(tmp, 0);
+    gr_hatch_report rep;
+    memset(&rep, 0, sizeof rep);
+    if ((rc = gr_hatch_layer(tl->section, &ho, tmp, &rep, e))) break;
+    for (size_t b = 0; b < tmp->nb && rc == GR_OK; b++) {
+      const gr_block *bk = &tmp->b[b];
+      if (bk->kind == GR_HATCH) continue;
+      if (gr_clip_poly(tmp->xy + 2 * bk->start, bk->n, bk->shape == GR_CLOSED, bk->kind, bk->dir, box_lo, box_hi,
+                    tl->paths, &buf, &cap))
+        rc = gr_fail(e, GR_EMEM, "out of memory");
+    }
+    tl->paths->thin_walls = rep.thin_walls;
+    if (rc == GR_OK) rc = offset_fine(tl->section, rep.hatch_offset, h, tl->region, e);
+    /* hatch ends need no sub-micrometre region: fewer edges to scan per instance */
+    if (rc == GR_OK && gr_rings_simplify(tl->region, REGION_TOL)) rc = gr_fail(e, GR_EMEM, "out of memory");
+    if (rc == GR_OK && face_lines(opt, tl)) rc = gr_fail(e, GR_EMEM, "out of memory");
+    tl->q[0] = tl->q[1] = tl->q[2] = NAN;
+    if (rc == GR_OK && opt->verify) rc = verify_template_layer(opt, tl, gr_layer_angle(opt, g0 + t->j0 + q), e);
+  }
+  free(buf);
+  gr_layer_free(tmp);
+  return rc;
+}
+
+void gr_tmpl_qualify(const gr_job_opts *o, gr_tmpl *t, const char *key, gr_qualify_fn fn, void *ud,
+                     char *why, size_t n) {
+  long thin = 0;
+  why[0] = 0;
+  for (int q = 0; q < t->nl; q++) thin += t->l[q].paths->thin_walls;
+  t->quality[0] = t->quality[1] = t->quality[2] = t->quality[3] = NAN;
+  if (o->verify) {
+    t->quality[0] = t->quality[1] = t->quality[2] = t->quality[3] = 0;
+    for (int q = 0; q < t->nl; q++) {
+      for (int k = 0; k < 3; k++)
+        if (!isnan(t->l[q].q[k])) t->quality[k] = fmax(t->quality[k], t->l[q].q[k]);
+      t->quality[3] += !isnan(t->l[q].q[0]);
+    }
+    if (t->quality[0] > o->max_pore)
+      snprintf(why, n, "pore %.3g %% > %.3g %%", 100 * t->quality[0], 100 * o->max_pore);
+    else if (t->quality[1] > o->max_overmelt)
+      snprintf(why, n, "overmelt %.3g %% > %.3g %%", 100 * t->quality[1], 100 * o->max_overmelt);
+    else if (t->quality[2] > o->max_dev)
+      snprintf(why, n, "contour deviation %.3g um > %.3g um", 1e3 * t->quality[2], 1e3 * o->max_dev);
+  }
+  t->qualified = !why[0];
+  if (t->qualified && fn && !fn(ud, key, t->quality, thin, why, n)) {
+    t->qualified = 0;
+    if (!why[0]) snprintf(why, n, "refused by the recipe's rule");
+  }
+}
+
+/* Template <-> knowledge-base record: slot 0 section, slot 1 region; the
+ * extra layer holds the clipped contour paths. */
+gr_template *gr_tmpl_to_record(const gr_job_opts *o, const gr_tmpl *t, const char *sig, int count, gr_err *e) {
+  gr_template *r = gr_template_new(sig, t->nl, 2, 1, e);
+  if (!r) return NULL;
+  char meta[256];
+  snprintf(meta, sizeof meta, "{gradus: %s, voxels_at_build: %d, cell: %g}", GRADUS_VERSION, count, o->cell);
+  if (gr_template_set_meta(r, meta, e)) { gr_template_free(r); return NULL; }
+  for (int q = 0; q < t->nl; q++) {
+    r->z[q] = q * o->layer; /* local layer offsets from the first layer */
+    if (gr_rings_copy(r->rings[q * 2], t->l[q].section) || gr_rings_copy(r->rings[q * 2 + 1], t->l[q].region) ||
+        gr_layer_append(r->extra[q], t->l[q].paths, 0, 0)) {
+      gr_template_free(r);
+      gr_fail(e, GR_EMEM, "out of memory");
+      return NULL;
+    }
+    r->extra[q]->thin_walls = t->l[q].paths->thin_walls;
+  }
+  for (int i = 0; i < GR_TEMPLATE_NQ; i++) r->quality[i] = i < 4 ? t->quality[i] : NAN;
+  r->qualified = t->qualified;
+  return r;
+}
+
+gr_tmpl *gr_tmpl_from_record(const gr_job_opts *o, const gr_template *r, int nl) {
+  if (r->nlayers != nl || r->nslots != 2 || !r->extra) return NULL;
+  for (int q = 0; q < nl; q++)
+    if (!r->rings[q * 2] || !r->rings[q * 2 + 1] || !r->extra[q]) return NULL;
+  gr_tmpl *t = gr_tmpl_new(0, nl);
+  if (!t) return NULL;
+  for (int q = 0; q < nl; q++) {
+    t->l[q].section = gr_rings_new();
+    t->l[q].region = gr_rings_new();
+    t->l[q].paths = gr_layer_new(0);
+    if (!t->l[q].section || !t->l[q].region || !t->l[q].paths ||
+        gr_rings_copy(t->l[q].section, r->rings[q * 2]) || gr_rings_copy(t->l[q].region, r->rings[q * 2 + 1]) ||
+        gr_layer_append(t->l[q].paths, r->extra[q], 0, 0)) {
+      gr_tmpl_free(t);
+      return NULL;
+    }
+  }
+  for (int q = 0; q < nl; q++) {
+    double lo[2] = {0, 0}, hi[2] = {o->cell, o->cell};
+    t->l[q].area = gr_clip_area(t->l[q].section, lo, hi);
+    if (face_lines(o, &t->l[q])) { gr_tmpl_free(t); return NULL; }
+  }
+  for (int i = 0; i < 4; i++) t->quality[i] = r->quality[i];
+  t->qualified = r->qualified;
+  t->from_kb = 1;
+  return t;
+}
