@@ -892,7 +892,9 @@ static void cptab_free(cptab *t) {
 /* Nodes per period, or 0 when the slice grid is not periodic with the cell. */
 static int grid_period(const gr_job *j) {
   double P = j->o.cell / j->o.slice_cell;
-  return fabs(P - round(P)) < 1e-9 * P && round(P) >= 2 ? (int)round(P) : 0;
+  /* P * P nodes are allocated per layer: beyond 2^15 a side the shared grid
+   * is refused here (no int overflow in the cast, none in P * P later) */
+  return P <= 32768 && fabs(P - round(P)) < 1e-9 * P && round(P) >= 2 ? (int)round(P) : 0;
 }
 
 /* Closest points of table layer q (thread-safe for distinct q). */
