@@ -82,6 +82,20 @@ static void set_anchor(lua_State *L, yparser *p, const unsigned char *anchor) {
 }
 
 /* Parse the node starting at the current event; push its value. */
+/* A merge key ("<<") takes a mapping or a sequence of mappings; anything else
+ * (a scalar such as `<<: abc`) is refused here, before the merge walks it. */
+static void check_merge(lua_State *L, const char *name, int line, int col) {
+  int ok = lua_type(L, -1) == LUA_TTABLE;
+  lua_Integer n = ok ? (lua_Integer)lua_rawlen(L, -1) : 0;
+  for (lua_Integer i = 1; ok && i <= n; i++) {
+    ok = lua_rawgeti(L, -1, i) == LUA_TTABLE;
+    lua_pop(L, 1);
+  }
+  if (!ok)
+    luaL_error(L, "%s:%d:%d: merge key '<<' needs a mapping or a sequence of mappings, got a%s %s", name, line,
+               col, lua_type(L, -1) == LUA_TTABLE ? "" : "", lua_type(L, -1) == LUA_TTABLE ? "sequence with a scalar" : luaL_typename(L, -1));
+}
+
 static void parse_node(lua_State *L, yparser *p, int depth) {
   if (depth > MAX_DEPTH)
     luaL_error(L, "%s:%d: nesting deeper than %d", p->name,
@@ -126,7 +140,9 @@ static void parse_node(lua_State *L, yparser *p, int depth) {
       if (lua_type(L, -1) == LUA_TSTRING && strcmp(lua_tostring(L, -1), "<<") == 0) {
         lua_pop(L, 1);
         yp_next(L, p);
+        int vline = (int)p->event.start_mark.line + 1, vcol = (int)p->event.start_mark.column + 1;
         parse_node(L, p, depth + 1);
+        check_merge(L, p->name, vline, vcol);
         lua_rawseti(L, merges, ++nmerge);
         continue;
       }
