@@ -237,6 +237,7 @@ static int y_decode(lua_State *L) {
 
 static int load_file(lua_State *L, int all) {
   const char *path = luaL_checkstring(L, 1);
+  gr_lua_guard(L, path, "r");
   FILE *f = fopen(path, "rb");
   if (!f) return luaL_error(L, "cannot read YAML file %s: %s", path, strerror(errno));
   luaL_Buffer b;

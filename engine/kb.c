@@ -6,6 +6,7 @@
 #include <limits.h>
 #include <math.h>
 #include <pthread.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
@@ -598,14 +599,15 @@ static int read_all(const char *path, unsigned char **buf, size_t *n) {
   return 0;
 }
 
-/* Write data to `path` atomically: a unique temporary "<path>.tmp-XXXXXX" in
- * the same directory, fsync, rename. On failure the temporary is removed. */
+/* Write data to `path` atomically: a unique temporary "<path>.tmp-PID-XXXXXX"
+ * in the same directory (the writer's process id lets a later job tell a
+ * dead writer's leftover from a live one), fsync, rename. On failure the
+ * temporary is removed. */
 static int write_atomic(const char *path, const void *data, size_t n, gr_err *e) {
   size_t np = strlen(path);
-  char *tmp = malloc(np + 12);
+  char *tmp = malloc(np + 40);
   if (!tmp) return gr_fail(e, GR_EMEM, "out of memory");
-  memcpy(tmp, path, np);
-  memcpy(tmp + np, ".tmp-XXXXXX", 12);
+  snprintf(tmp, np + 40, "%s.tmp-%ld-XXXXXX", path, (long)getpid());
   int fd = mkstemp(tmp);
   if (fd < 0) {
     int err = errno;
@@ -1047,6 +1049,21 @@ static int list_dir(const char *dir, names *ns, gr_err *e) {
 
 static int is_temp_name(const char *s) { return strstr(s, ".tmp-") != NULL; }
 
+/* Whether temporary `name` in dir may still be written: its writer's process
+ * ("<file>.tmp-PID-XXXXXX") is alive, or, for the older "<file>.tmp-XXXXXX"
+ * names, it changed within the last hour. */
+static int temp_in_use(const char *dir, const char *name) {
+  const char *t = strstr(name, ".tmp-") + 5;
+  char *end;
+  long pid = strtol(t, &end, 10);
+  if (end != t && *end == '-' && pid > 0) return kill((pid_t)pid, 0) == 0 || errno == EPERM;
+  char *p = join(dir, name);
+  struct stat st;
+  int recent = p && stat(p, &st) == 0 && time(NULL) - st.st_mtime < 3600;
+  free(p);
+  return recent;
+}
+
 /* "<64 hex>.gtp" -> key in k; else 0. */
 static int blob_name_key(const char *s, char k[65]) {
   size_t n = strlen(s);
@@ -1250,7 +1267,7 @@ static int sweep_temps(gr_kb *kb, int remove, gr_kb_report *r, msgs *m, gr_err *
     int rc = list_dir(d, &ns, e);
     if (rc) { free(d); return rc; }
     for (size_t i = 0; i < ns.n; i++) {
-      if (!is_temp_name(ns.v[i])) continue;
+      if (!is_temp_name(ns.v[i]) || temp_in_use(d, ns.v[i])) continue;
       r->orphans++;
       char *p = join(d, ns.v[i]);
       if (remove && p && unlink(p) == 0) {
@@ -1365,6 +1382,14 @@ int gr_kb_prune(gr_kb *kb, const gr_kb_prune_opts *opts, gr_kb_report *r, gr_err
   }
   lock_drop(kb, fd);
   gr_kb_entries_free(c.good.v, c.good.n);
+  r->messages = m.p;
+  return rc;
+}
+
+int gr_kb_sweep(gr_kb *kb, gr_kb_report *r, gr_err *e) {
+  memset(r, 0, sizeof *r);
+  msgs m = {0};
+  int rc = sweep_temps(kb, 1, r, &m, e);
   r->messages = m.p;
   return rc;
 }

@@ -118,8 +118,8 @@ int gr_mesh_topology(const gr_mesh *m, gr_mesh_topo *t, gr_err *e) {
   }
   qsort(h, nh, sizeof *h, half_cmp);
   for (size_t i = 0; i < nh;) {
-    size_t j = i, nf = 0, nb = 0;
-    while (j < nh && h[j].a == h[i].a && h[j].b == h[i].b) { nf += h[j].fwd; nb += !h[j].fwd; j++; }
+    size_t j = i, nf = 0;
+    while (j < nh && h[j].a == h[i].a && h[j].b == h[i].b) { nf += h[j].fwd; j++; }
     t->edges++;
     size_t use = j - i;
     if (use == 1) t->boundary_edges++;

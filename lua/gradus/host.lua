@@ -5,6 +5,7 @@ local M = {}
 
 local USAGE = [[
 usage: gradus run RECIPE [-D name=value]... [-o OUTPUT] [--stats FILE] [-q]
+                  [--sandbox] [--limits memory=MiB,instructions=N,seconds=S]
        gradus sweep RECIPE -D name=v1,v2,... -D other=a:b:step [-j N] [-o DIR]
        gradus cli info FILE        layers, bounds, counts and lengths of a CLI file
        gradus kb list|show KEY|verify|prune [--dir DIR]
@@ -12,7 +13,9 @@ usage: gradus run RECIPE [-D name=value]... [-o OUTPUT] [--stats FILE] [-q]
        gradus --version | help
 
 Recipes are Lua files (see recipes/ and doc/guide.md). They read -D values
-with gradus.param(name, default); -o with gradus.output(default).]]
+with gradus.param(name, default); -o with gradus.output(default).
+Recipes are trusted code (they can run programs and write any file);
+run recipes from others with --sandbox (doc/safety.md).]]
 
 local function eprint(...)
   io.stderr:write(table.concat({ ... }, " "), "\n")
@@ -102,19 +105,34 @@ local function edit_distance(a, b)
   return prev[#b]
 end
 
---- Run a recipe file with parameters. opts: output, stats, quiet.
--- Returns true, or false and the error message.
+--- Run a recipe file with parameters. opts: output, stats, quiet, sandbox
+-- (true or {memory = MiB, instructions = n, seconds = s}: gradus.sandbox).
+-- Returns true, or false, the error message and the job's context.
 function M.run(path, params, opts)
   opts = opts or {}
   local ctx = { params = params or {}, read = {}, output = opts.output, stats = opts.stats,
     quiet = opts.quiet, recipe = path }
   local saved = gradus._ctx
   gradus._ctx = ctx
-  local chunk, err = loadfile(path, "t", M.recipe_env())
+  local env, sandbox = M.recipe_env(), nil
+  if opts.sandbox then
+    sandbox = require "gradus.sandbox"
+    local sok, serr = pcall(sandbox.start, ctx, type(opts.sandbox) == "table" and opts.sandbox or nil)
+    if not sok then gradus._ctx = saved return false, "gradus: --sandbox: " .. tostring(serr), ctx end
+    env = sandbox.env(ctx.sandbox)
+  end
+  local chunk, err = loadfile(path, "t", env)
   local ok = chunk ~= nil
   if chunk then ok, err = xpcall(chunk, handler) end
+  if sandbox then
+    local limit = gradus.term and gradus.term.limit_reached()
+    sandbox.stop()
+    if not ok and limit and not tostring(err):find("sandbox: ", 1, true) then
+      err = ("sandbox: %s (%s)"):format(limit, tostring(err))
+    end
+  end
   gradus._ctx = saved
-  if not ok then return false, err end
+  if not ok then return false, err, ctx end
   -- -D names never read: probable typos
   local known = {}
   for k in pairs(ctx.read) do known[#known + 1] = k end
@@ -156,6 +174,12 @@ function M.parse_args(args, first)
       o.stats = value()
     elseif a == "-q" or a == "--quiet" then
       o.quiet = true
+    elseif a == "--sandbox" then
+      o.sandbox = o.sandbox or true
+    elseif a == "--limits" then -- memory=MiB,instructions=N,seconds=S (implies --sandbox)
+      local lim = {}
+      for k, v in value():gmatch("(%a+)=([^,]+)") do lim[k] = tonumber(v) end
+      o.sandbox = lim
     elseif a == "-j" then
       o.jobs = tonumber(value())
       if not o.jobs or o.jobs < 1 then error("-j needs a positive number", 0) end
@@ -178,8 +202,17 @@ local function cmd_run(args)
   local f = io.open(recipe, "r")
   if not f then eprint("gradus: cannot open recipe " .. recipe) return 1 end
   f:close()
-  local rok, err = M.run(recipe, o.params, o)
-  if not rok then eprint(err) return 1 end
+  local rok, err, ctx = M.run(recipe, o.params, o)
+  if not rok then
+    eprint(err)
+    if gradus.fs.interrupted() ~= 0 then
+      local gone = ctx and ctx.removed_temporaries or {}
+      eprint(("gradus: stopped by Ctrl-C; no output was replaced%s"):format(#gone > 0 and
+        ("; temporaries removed: " .. table.concat(gone, ", ")) or ""))
+      return 130
+    end
+    return 1
+  end
   return 0
 end
 

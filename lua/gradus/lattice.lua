@@ -119,7 +119,7 @@ end
 -- or an STL file); p.skin (mm).
 -- Writes the CLI to `out`, the manifest beside it, stats to --stats, and SVG
 -- pictures of p.pictures layers. Returns the stats table.
-function M.run(p, out)
+local function run(p, out)
   local cells = vec("cells", p.cells, 3)
   for a = 1, 3 do
     if cells[a] < 1 or cells[a] ~= math.floor(cells[a]) then
@@ -282,5 +282,7 @@ function M.run(p, out)
   gradus.write_stats(st)
   return st, kept
 end
+-- one job: CLI, manifest, pictures and stats are renamed into place together
+function M.run(p, out) return gradus.outputs.job(run, p, out) end
 
 return M
