@@ -11,6 +11,8 @@ PKG_LIBS   = $(shell pkg-config --libs $(PKGS) 2>/dev/null)
 CFLAGS    ?= -O2 -g
 ALL_CFLAGS = $(CSTD) $(WARN) $(CFLAGS) -fPIC -pthread -Iengine $(PKG_CFLAGS)
 LIBS       = $(PKG_LIBS) -lm -pthread -ldl
+FUZZ_CC   ?= clang
+FUZZ_HAVE := $(shell command -v $(FUZZ_CC) >/dev/null 2>&1 && echo yes)
 SAN        = -O1 -g -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
 
 ALL_SRC   := $(wildcard engine/*.c)
@@ -87,9 +89,7 @@ build/bench/%: bench/%.c $(CORE_OBJ)
 # under ASan+UBSan; `make fuzz` runs each for FUZZ_SECONDS on its corpus
 # tests/fuzz/<name>/ (new inputs go to build/fuzz/corpus/<name>/);
 # `make test` replays the corpora for a fixed number of runs (tests/sh/test_fuzz.sh).
-FUZZ_CC      ?= clang
 FUZZ_SECONDS ?= 60
-FUZZ_HAVE    := $(shell command -v $(FUZZ_CC) >/dev/null 2>&1 && echo yes)
 FUZZ_SAN      = -g -O1 -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=undefined
 FUZZERS      := $(patsubst tests/fuzz/fuzz_%.c,%,$(wildcard tests/fuzz/fuzz_*.c))
 FUZZ_OBJ     := $(CORE_SRC:engine/%.c=build/fuzz/obj/%.o) $(BIND_SRC:engine/%.c=build/fuzz/obj/%.o)

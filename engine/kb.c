@@ -1049,19 +1049,15 @@ static int list_dir(const char *dir, names *ns, gr_err *e) {
 
 static int is_temp_name(const char *s) { return strstr(s, ".tmp-") != NULL; }
 
-/* Whether temporary `name` in dir may still be written: its writer's process
- * ("<file>.tmp-PID-XXXXXX") is alive, or, for the older "<file>.tmp-XXXXXX"
- * names, it changed within the last hour. */
-static int temp_in_use(const char *dir, const char *name) {
+/* Whether temporary `name` may still be written: its writer's process
+ * ("<file>.tmp-PID-XXXXXX") is alive. The older "<file>.tmp-XXXXXX" names
+ * (no PID) come only from earlier versions or crashes: debris. */
+static int temp_in_use(const char *name) {
   const char *t = strstr(name, ".tmp-") + 5;
   char *end;
   long pid = strtol(t, &end, 10);
   if (end != t && *end == '-' && pid > 0) return kill((pid_t)pid, 0) == 0 || errno == EPERM;
-  char *p = join(dir, name);
-  struct stat st;
-  int recent = p && stat(p, &st) == 0 && time(NULL) - st.st_mtime < 3600;
-  free(p);
-  return recent;
+  return 0;
 }
 
 /* "<64 hex>.gtp" -> key in k; else 0. */
@@ -1267,7 +1263,7 @@ static int sweep_temps(gr_kb *kb, int remove, gr_kb_report *r, msgs *m, gr_err *
     int rc = list_dir(d, &ns, e);
     if (rc) { free(d); return rc; }
     for (size_t i = 0; i < ns.n; i++) {
-      if (!is_temp_name(ns.v[i]) || temp_in_use(d, ns.v[i])) continue;
+      if (!is_temp_name(ns.v[i]) || temp_in_use(ns.v[i])) continue;
       r->orphans++;
       char *p = join(d, ns.v[i]);
       if (remove && p && unlink(p) == 0) {

@@ -272,6 +272,7 @@ function M.repl()
     if not chunk then
       print(err)
     else
+      gradus.fs.clear_interrupt() -- a Ctrl-C at the prompt does not stop the next command
       local res = table.pack(xpcall(chunk, function(e) return tostring(e) end))
       if not res[1] then
         print(res[2])
