@@ -2,7 +2,7 @@
 # and `make demo` first install missing Debian packages (as root).
 PKGS      := lua5.4 yaml-0.1 readline libpng libmicrohttpd
 DEB_PKGS  := gcc make pkg-config liblua5.4-dev lua5.4 libyaml-dev libreadline-dev libpng-dev \
-             libmicrohttpd-dev chromium curl
+             libmicrohttpd-dev chromium curl clang libclang-rt-14-dev
 CC        ?= cc
 CSTD      := -std=c11 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE
 WARN      := -Wall -Wextra
@@ -11,6 +11,8 @@ PKG_LIBS   = $(shell pkg-config --libs $(PKGS) 2>/dev/null)
 CFLAGS    ?= -O2 -g
 ALL_CFLAGS = $(CSTD) $(WARN) $(CFLAGS) -fPIC -pthread -Iengine $(PKG_CFLAGS)
 LIBS       = $(PKG_LIBS) -lm -pthread -ldl
+FUZZ_CC   ?= clang
+FUZZ_HAVE := $(shell command -v $(FUZZ_CC) >/dev/null 2>&1 && echo yes)
 SAN        = -O1 -g -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
 
 ALL_SRC   := $(wildcard engine/*.c)
@@ -23,7 +25,7 @@ SAN_OBJ   := $(CORE_SRC:engine/%.c=build/asan/obj/%.o)
 SAN_BIND  := $(BIND_SRC:engine/%.c=build/asan/obj/%.o) build/asan/obj/main.o
 CTESTS    := $(patsubst tests/c/%.c,%,$(wildcard tests/c/test_*.c))
 
-.PHONY: all deps check-deps test test-run demo demo-run bench clean ctests
+.PHONY: all deps check-deps test test-run demo demo-run bench clean ctests fuzz fuzz-build
 all: check-deps build/gradus build/gradus.so
 
 # Install what is missing (fresh Debian 12, as root).
@@ -63,7 +65,7 @@ ctests: $(CTESTS:%=build/tests/%) $(CTESTS:%=build/asan/tests/%) build/gradus-as
 
 test: deps
 	@$(MAKE) --no-print-directory test-run
-test-run: all ctests
+test-run: all ctests $(if $(FUZZ_HAVE),fuzz-build)
 	@bash tests/run.sh
 
 demo: deps
@@ -83,3 +85,21 @@ build/bench/%: bench/%.c $(CORE_OBJ)
 	@mkdir -p build/bench
 	$(CC) $(ALL_CFLAGS) -O3 -o $@ $< $(CORE_OBJ) $(LIBS)
 .SECONDARY:
+
+# Fuzzing: libFuzzer harnesses tests/fuzz/fuzz_*.c built with Debian's clang
+# under ASan+UBSan; `make fuzz` runs each for FUZZ_SECONDS on its corpus
+# tests/fuzz/<name>/ (new inputs go to build/fuzz/corpus/<name>/);
+# `make test` replays the corpora for a fixed number of runs (tests/sh/test_fuzz.sh).
+FUZZ_SECONDS ?= 60
+FUZZ_SAN      = -g -O1 -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=undefined
+FUZZERS      := $(patsubst tests/fuzz/fuzz_%.c,%,$(wildcard tests/fuzz/fuzz_*.c))
+FUZZ_OBJ     := $(CORE_SRC:engine/%.c=build/fuzz/obj/%.o) $(BIND_SRC:engine/%.c=build/fuzz/obj/%.o)
+build/fuzz/obj:
+	mkdir -p $@
+build/fuzz/obj/%.o: engine/%.c $(HDRS) | build/fuzz/obj
+	$(FUZZ_CC) $(CSTD) $(WARN) $(FUZZ_SAN) -fsanitize=fuzzer-no-link -pthread -Iengine $(PKG_CFLAGS) -c $< -o $@
+build/fuzz/fuzz_%: tests/fuzz/fuzz_%.c $(FUZZ_OBJ)
+	$(FUZZ_CC) $(CSTD) $(WARN) $(FUZZ_SAN) -fsanitize=fuzzer -pthread -Iengine $(PKG_CFLAGS) -o $@ $< $(FUZZ_OBJ) $(LIBS)
+fuzz-build: $(FUZZERS:%=build/fuzz/fuzz_%)
+fuzz: check-deps fuzz-build
+	@bash tests/fuzz/run.sh $(FUZZ_SECONDS) $(FUZZERS)

@@ -70,6 +70,15 @@ int gr_open_slice(lua_State *L);    /* gradus.slice.*, rings methods */
 int gr_open_hatch(lua_State *L);    /* gradus.hatch.*, layer methods, verify */
 int gr_open_io(lua_State *L);       /* gradus.cli.*, gradus.svg.*, gradus.png.* */
 int gr_open_yaml(lua_State *L);     /* gradus.yaml.* */
+int gr_open_fs(lua_State *L);       /* gradus.fs.* (bind_fs.c) */
+/* Where a C writer must write the output `path`: the job's output
+ * transaction (lua/gradus/outputs.lua) stages it under a temporary name that
+ * is renamed when every output is complete; outside a job, path itself.
+ * The string is left on the Lua stack (it stays valid while there). */
+const char *gr_lua_stage(lua_State *L, const char *path);
+/* Raise if the sandbox (when on) refuses `path` for mode "r" (read) or "w"
+ * (write or create); nothing otherwise. */
+void gr_lua_guard(lua_State *L, const char *path, const char *mode);
 int gr_open_place(lua_State *L);    /* gradus.place.*, gradus.kb.* */
 int gr_open_view(lua_State *L);     /* gradus.view.* (bind_view.c) */
 

@@ -37,6 +37,7 @@ static int read_layer(void *ud, const gr_layer *l, gr_err *e) {
 
 static int l_read(lua_State *L) {
   const char *path = luaL_checkstring(L, 1);
+  gr_lua_guard(L, path, "r");
   lua_newtable(L);
   readctx c = {L, lua_gettop(L), 0};
   gr_cli_header h;
@@ -85,6 +86,7 @@ static int info_layer(void *ud, const gr_layer *l, gr_err *e) {
 
 static int l_info(lua_State *L) {
   const char *path = luaL_checkstring(L, 1);
+  gr_lua_guard(L, path, "r");
   infoctx c;
   memset(&c, 0, sizeof c);
   c.lo[0] = c.lo[1] = c.zmin = INFINITY;
@@ -135,11 +137,12 @@ static int l_info(lua_State *L) {
 static int l_png_layer(lua_State *L) {
   const char *path = luaL_checkstring(L, 1);
   gr_layer *l = gr_check_layer(L, 2);
+  const char *dest = gr_lua_stage(L, path); /* the job's output transaction */
   gr_png_opts o = {gr_opt_integer(L, 3, "width", 800), gr_opt_number(L, 3, "line_width", 1.2),
                    gr_opt_boolean(L, 3, "jumps", 0)};
   gr_err e;
   gr_err_clear(&e);
-  if (gr_png_layer(path, l, &o, &e)) return gr_lua_error(L, &e);
+  if (gr_png_layer(dest, l, &o, &e)) return gr_lua_error(L, &e);
   lua_pushstring(L, path);
   return 1;
 }

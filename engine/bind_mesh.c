@@ -45,6 +45,7 @@ static int l_mc(lua_State *L) {
 
 static int l_read(lua_State *L) {
   const char *path = luaL_checkstring(L, 1);
+  gr_lua_guard(L, path, "r");
   gr_err e;
   gr_mesh *m = gr_mesh_read(path, &e);
   if (!m) return gr_lua_error(L, &e);
@@ -72,7 +73,8 @@ static int l_solid(lua_State *L) {
 static int m_write(lua_State *L) {
   gr_mesh *m = gr_check_mesh(L, 1);
   gr_err e;
-  if (gr_mesh_write(m, luaL_checkstring(L, 2), luaL_optstring(L, 3, NULL), &e))
+  const char *format = luaL_optstring(L, 3, NULL);
+  if (gr_mesh_write(m, gr_lua_stage(L, luaL_checkstring(L, 2)), format, &e))
     return gr_lua_error(L, &e);
   lua_settop(L, 1);
   return 1;

@@ -11,6 +11,7 @@
 #include <math.h>
 #include <unistd.h>
 #include "bind.h"
+#include "interrupt.h"
 #include "cli.h"
 #include "kb.h"
 #include "place.h"
@@ -228,12 +229,18 @@ typedef struct sinkctx {
   int nkeep;
   gr_layer **kept;
   double t_write;      /* seconds spent writing */
+  int g0, g1;          /* first and last layer written */
 } sinkctx;
 
 static int sink(void *ud, int g, const gr_layer *l, gr_err *e) {
   sinkctx *s = ud;
   double t0 = gr_now();
   int rc = GR_OK;
+  if (gr_interrupted()) { /* Ctrl-C: stop here, the writers remove their temporaries */
+    gr_interrupt_reported();
+    return gr_fail(e, GR_EIO, "interrupted (Ctrl-C) before layer %d (z = %.4f mm) of layers %d..%d: %d written, nothing kept",
+                   g, l->z, s->g0, s->g1, g - s->g0);
+  }
   if (s->split) {
     for (int la = 0; la < s->nlasers && rc == GR_OK; la++) {
       gr_layer_clear(s->tmp, l->z);
@@ -384,6 +391,18 @@ static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) 
   if (w && *w) { lua_pushstring(L, w); lua_setfield(L, -2, "warning"); }
 }
 
+/* Remove the temporaries that stopped jobs left in the knowledge base, and
+ * say so on stderr (a failure to look is not the job's failure). */
+static void sweep_kb(gr_kb *kb) {
+  gr_kb_report rep;
+  gr_err e;
+  gr_err_clear(&e);
+  if (gr_kb_sweep(kb, &rep, &e) == GR_OK && rep.removed)
+    fprintf(stderr, "gradus: knowledge base %s: removed %zu temporary file(s) left by stopped jobs:\n%s", gr_kb_dir(kb),
+            rep.removed, rep.messages ? rep.messages : "");
+  gr_kb_report_clear(&rep);
+}
+
 /* job:run{output=, format="ascii"|"binary", kb=dir|true|false, direct=,
  *         first=, last=, keep={g...}, split=, quiet=} -> stats, kept layers */
 static int l_run(lua_State *L) {
@@ -400,6 +419,18 @@ static int l_run(lua_State *L) {
   r.first = gr_opt_integer(L, 2, "first", 0);
   r.last = gr_opt_integer(L, 2, "last", 0);
   int split = gr_opt_boolean(L, 2, "split", 0);
+  /* the output paths as the job's output transaction stages them (this may
+   * raise, so before anything is allocated) */
+  const char *outs[GR_MAX_LASERS + 1] = {NULL};
+  int nsplit = out && split ? gr_job_options(j)->nlasers : 0;
+  if (out) outs[0] = gr_lua_stage(L, out);
+  for (int la = 0; nsplit > 1 && la < nsplit; la++) {
+    char path[4200];
+    size_t n = strlen(out);
+    if (n > 4 && !strcmp(out + n - 4, ".cli")) snprintf(path, sizeof path, "%.*s_laser%d.cli", (int)(n - 4), out, la + 1);
+    else snprintf(path, sizeof path, "%s_laser%d.cli", out, la + 1);
+    outs[la + 1] = gr_lua_stage(L, path);
+  }
   progctx pc = {gr_opt_boolean(L, 2, "quiet", 1), gr_now(), 0};
   r.progress = progress;
   r.progress_ud = &pc;
@@ -419,6 +450,7 @@ static int l_run(lua_State *L) {
   if (lua_type(L, -1) == LUA_TSTRING) snprintf(kbdir, sizeof kbdir, "%s", lua_tostring(L, -1));
   else if (lua_toboolean(L, -1)) gr_kb_default_dir(kbdir, sizeof kbdir);
   lua_pop(L, 1);
+  if (kbdir[0]) gr_lua_guard(L, kbdir, "w"); /* the sandbox's say, before anything is allocated */
   gr_err e;
   gr_err_clear(&e);
   sinkctx s;
@@ -448,6 +480,8 @@ static int l_run(lua_State *L) {
   h.nlasers = o->nlasers;
   int ga = r.first > 0 ? r.first : 1, gb = r.last > 0 && r.last < gr_job_layers(j) ? r.last : gr_job_layers(j);
   h.layers = gb - ga + 1;
+  s.g0 = ga;
+  s.g1 = gb;
   for (int a = 0; a < 3; a++) {
     h.lo[a] = o->origin[a];
     h.hi[a] = o->origin[a] + o->n[a] * o->cell;
@@ -457,16 +491,13 @@ static int l_run(lua_State *L) {
   if (kbdir[0] && !r.direct) {
     kb = gr_kb_open(kbdir, &e);
     if (!kb) rc = e.code ? e.code : GR_EIO;
+    else sweep_kb(kb);
   }
   if (rc == GR_OK && out) {
-    s.w[0] = gr_cli_open(out, &h, &e);
+    s.w[0] = gr_cli_open(outs[0], &h, &e);
     if (!s.w[0]) rc = e.code ? e.code : GR_EIO;
     for (int la = 0; s.split && rc == GR_OK && la < o->nlasers; la++) {
-      char path[4200];
-      size_t n = strlen(out);
-      if (n > 4 && !strcmp(out + n - 4, ".cli")) snprintf(path, sizeof path, "%.*s_laser%d.cli", (int)(n - 4), out, la + 1);
-      else snprintf(path, sizeof path, "%s_laser%d.cli", out, la + 1);
-      s.w[la + 1] = gr_cli_open(path, &h, &e);
+      s.w[la + 1] = gr_cli_open(outs[la + 1], &h, &e);
       if (!s.w[la + 1]) rc = e.code ? e.code : GR_EIO;
     }
   }
@@ -485,6 +516,9 @@ static int l_run(lua_State *L) {
     if (rc == GR_OK && crc) { rc = crc; e = e2; }
   }
   gr_kb_close(kb);
+  if (gr_job_get_stats(j)->kb_corrupt) /* also in the stats; said here so that nobody misses it */
+    fprintf(stderr, "gradus: knowledge base %s: %d damaged record(s) rebuilt (%s)\n", kbdir,
+            gr_job_get_stats(j)->kb_corrupt, gr_job_warning(j));
   gr_layer_free(s.tmp);
   luaL_unref(L, LUA_REGISTRYINDEX, qc.ref);
   if (rc) {
@@ -519,6 +553,7 @@ static const char *kb_dir_arg(lua_State *L, int idx, char *buf, size_t n) {
     gr_kb_default_dir(buf, n);
     return buf;
   }
+  gr_lua_guard(L, luaL_checkstring(L, idx), "w");
   return luaL_checkstring(L, idx);
 }
 

@@ -97,6 +97,20 @@ static void mark_key(lua_State *L, yparser *p, int map, int line, int col) {
 }
 
 /* Parse the node starting at the current event; push its value. */
+/* A merge key ("<<") takes a mapping or a sequence of mappings; anything else
+ * (a scalar such as `<<: abc`) is refused here, before the merge walks it. */
+static void check_merge(lua_State *L, const char *name, int line, int col) {
+  int ok = lua_type(L, -1) == LUA_TTABLE;
+  lua_Integer n = ok ? (lua_Integer)lua_rawlen(L, -1) : 0;
+  for (lua_Integer i = 1; ok && i <= n; i++) {
+    ok = lua_rawgeti(L, -1, i) == LUA_TTABLE;
+    lua_pop(L, 1);
+  }
+  if (!ok)
+    luaL_error(L, "%s:%d:%d: merge key '<<' needs a mapping or a sequence of mappings, got a%s %s", name, line,
+               col, lua_type(L, -1) == LUA_TTABLE ? "" : "", lua_type(L, -1) == LUA_TTABLE ? "sequence with a scalar" : luaL_typename(L, -1));
+}
+
 static void parse_node(lua_State *L, yparser *p, int depth) {
   if (depth > MAX_DEPTH)
     luaL_error(L, "%s:%d: nesting deeper than %d", p->name,
@@ -146,7 +160,9 @@ static void parse_node(lua_State *L, yparser *p, int depth) {
       if (lua_type(L, -1) == LUA_TSTRING && strcmp(lua_tostring(L, -1), "<<") == 0) {
         lua_pop(L, 1);
         yp_next(L, p);
+        int vline = (int)p->event.start_mark.line + 1, vcol = (int)p->event.start_mark.column + 1;
         parse_node(L, p, depth + 1);
+        check_merge(L, p->name, vline, vcol);
         lua_rawseti(L, merges, ++nmerge);
         continue;
       }
@@ -260,6 +276,7 @@ static int y_decode(lua_State *L) {
 static int load_file(lua_State *L, int all) {
   const char *path = luaL_checkstring(L, 1);
   int marks = want_marks(L, 2);
+  gr_lua_guard(L, path, "r");
   FILE *f = fopen(path, "rb");
   if (!f) return luaL_error(L, "cannot read YAML file %s: %s", path, strerror(errno));
   luaL_Buffer b;

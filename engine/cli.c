@@ -4,6 +4,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
+#include <limits.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
@@ -265,8 +266,8 @@ static void drop_parsed(const char *base, size_t *dropped, size_t pos) {
 }
 
 static int layer_block(gr_layer *l, int shape, int id, int dir, const double *xy, size_t n) {
-  int kind = (id - 1) % 3, laser = (id - 1) / 3;
-  if (id < 1) kind = GR_EDGE, laser = 0;
+  int kind = GR_EDGE, laser = 0; /* ids below 1 (even INT_MIN: no id - 1) */
+  if (id >= 1) kind = (id - 1) % 3, laser = (id - 1) / 3;
   return gr_layer_add(l, shape, kind, laser, dir, xy, n);
 }
 
@@ -301,6 +302,9 @@ static int read_ascii(const char *path, const char *t, size_t len, size_t pos, i
       long cnt = strtol(c, &q, 10);
       if (q == c || cnt < 0) { rc = gr_fail(e, GR_EPARSE, "%s:%d: bad count", path, line); break; }
       size_t npts = poly ? (size_t)cnt : 2 * (size_t)cnt;
+      /* each coordinate takes at least 2 bytes of the line (",5"): a count
+       * the line cannot hold is refused before anything is allocated */
+      if ((size_t)cnt > n / 4 || 4 * npts > n) { rc = gr_fail(e, GR_EPARSE, "%s:%d: count %ld exceeds what the line's %zu bytes can hold", path, line, cnt, n); break; }
       if (gr_grow(&xy, &cap, npts + 1, 2 * sizeof(double))) { rc = gr_fail(e, GR_EMEM, "out of memory"); break; }
       for (size_t k = 0; k < 2 * npts; k++) {
         if (*q != ',') { rc = gr_fail(e, GR_EPARSE, "%s:%d: %zu coordinates expected, found %zu", path, line, 2 * npts, k); break; }
@@ -311,7 +315,7 @@ static int read_ascii(const char *path, const char *t, size_t len, size_t pos, i
       if (rc) break;
       if (*q == ',') { rc = gr_fail(e, GR_EPARSE, "%s:%d: more coordinates than the count %ld", path, line, cnt); break; }
       if (!have) { rc = gr_fail(e, GR_EPARSE, "%s:%d: geometry before the first $$LAYER", path, line); break; }
-      if (layer_block(l, poly ? (dir == 2 ? GR_OPEN : GR_CLOSED) : GR_SEGMENTS, (int)id, poly ? (int)dir : 2, xy, npts))
+      if (npts && layer_block(l, poly ? (dir == 2 ? GR_OPEN : GR_CLOSED) : GR_SEGMENTS, (int)id, poly ? (int)dir : 2, xy, npts))
         rc = gr_fail(e, GR_EMEM, "out of memory");
     } else if (n >= 13 && !strncmp(s, "$$GEOMETRYEND", 13)) {
       break;
@@ -363,7 +367,7 @@ static int read_binary(const char *path, const unsigned char *t, size_t len, siz
       if (gr_grow(&xy, &cap, npts + 1, 2 * sizeof(double))) { rc = gr_fail(e, GR_EMEM, "out of memory"); break; }
       for (size_t k = 0; k < 2 * npts; k++) xy[k] = rd_f32(t + pos + 4 * k) * h->units;
       pos += 8 * npts;
-      if (layer_block(l, poly ? (dir == 2 ? GR_OPEN : GR_CLOSED) : GR_SEGMENTS, id, poly ? dir : 2, xy, npts))
+      if (npts && layer_block(l, poly ? (dir == 2 ? GR_OPEN : GR_CLOSED) : GR_SEGMENTS, id, poly ? dir : 2, xy, npts))
         rc = gr_fail(e, GR_EMEM, "out of memory");
     } else {
       rc = gr_fail(e, GR_EPARSE, "%s: byte %zu: unknown command %u", path, at, cmd);
@@ -418,7 +422,10 @@ int gr_cli_read_from(const char *path, size_t from, int from_line, gr_cli_header
     else if (!strncmp(c, "$$UNITS/", 8)) {
       h->units = strtod(c + 8, NULL);
       if (!(h->units > 0)) { rc = gr_fail(e, GR_EPARSE, "%s:%d: bad $$UNITS", path, line); goto done; }
-    } else if (!strncmp(c, "$$LAYERS/", 9)) h->layers = atoi(c + 9);
+    } else if (!strncmp(c, "$$LAYERS/", 9)) {
+      long nl = strtol(c + 9, NULL, 10); /* atoi is undefined out of range */
+      h->layers = nl < 0 ? -1 : nl > INT_MAX ? INT_MAX : (int)nl;
+    }
     else if (!strncmp(c, "$$DIMENSION/", 12))
       sscanf(c + 12, "%lf,%lf,%lf,%lf,%lf,%lf", &h->lo[0], &h->lo[1], &h->lo[2], &h->hi[0], &h->hi[1], &h->hi[2]);
   }

@@ -4,6 +4,7 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -33,12 +34,23 @@ int gr_grow(void *pp, size_t *cap, size_t need, size_t elsize) {
   return GR_OK;
 }
 
+const char *gr_output_refusal(const char *path) {
+  struct stat st;
+  if (lstat(path, &st) != 0) return NULL; /* absent (or unreachable: the open says why) */
+  if (S_ISREG(st.st_mode)) return NULL;
+  return S_ISLNK(st.st_mode) ? "a symbolic link" : S_ISDIR(st.st_mode) ? "a directory"
+       : S_ISFIFO(st.st_mode) ? "a FIFO" : S_ISCHR(st.st_mode) ? "a character device"
+       : S_ISBLK(st.st_mode) ? "a block device" : S_ISSOCK(st.st_mode) ? "a socket" : "not a regular file";
+}
+
 int gr_atomic_open(gr_atomic *a, const char *path, gr_err *e) {
   memset(a, 0, sizeof *a);
   if (!path || !*path) return gr_fail(e, GR_EARG, "output path is empty");
   if (strlen(path) + 32 >= sizeof a->path)
     return gr_fail(e, GR_EARG, "output path too long: %s", path);
   strcpy(a->path, path);
+  const char *what = gr_output_refusal(path);
+  if (what) return gr_fail(e, GR_EIO, "cannot write %s: it is %s (only regular files are replaced)", path, what);
   snprintf(a->tmp, sizeof a->tmp, "%s.tmp%ld", path, (long)getpid());
   a->fp = fopen(a->tmp, "wb");
   if (!a->fp) {

@@ -44,7 +44,13 @@ typedef struct gr_atomic {
   char path[4096];  /* final path */
   char tmp[4096];   /* temporary path */
 } gr_atomic;
+/* Refuses (GR_EIO, naming what it is) a path that exists and is not a
+ * regular file: a device, FIFO, socket, directory or symbolic link is never
+ * replaced by the rename. */
 int gr_atomic_open(gr_atomic *a, const char *path, gr_err *e);
+/* Why `path` may not be replaced by an output: "a symbolic link", "a FIFO",
+ * "a character device", ... or NULL when it is absent or a regular file. */
+const char *gr_output_refusal(const char *path);
 /* Flush, fsync-free close and rename. On any write error (e.g. disk full)
  * the temporary is removed and GR_EIO returned. */
 int gr_atomic_commit(gr_atomic *a, gr_err *e);

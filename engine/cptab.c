@@ -13,7 +13,9 @@ void gr_cptab_free(gr_cptab *t) {
 
 int gr_cptab_period(double cell, double h) {
   double P = cell / h;
-  return fabs(P - round(P)) < 1e-9 * P && round(P) >= 2 ? (int)round(P) : 0;
+  /* P * P nodes are allocated per layer: beyond 2^15 a side the shared grid
+   * is refused here (no int overflow in the cast, none in P * P later) */
+  return P <= 32768 && fabs(P - round(P)) < 1e-9 * P && round(P) >= 2 ? (int)round(P) : 0;
 }
 
 gr_cptab *gr_cptab_new(const gr_grid *grid, double h, double margin, const gr_field *ref, const double oref[3],

@@ -402,8 +402,10 @@ static void run_chunk(const gr_expr *x, size_t off, size_t m,
   int sp = 0; /* next free slot */
   for (size_t k = 0; k < x->ncode; k++) {
     const instr *in = &x->code[k];
-    double *a = stack + (size_t)(sp - 1) * CHUNK; /* top (unary) */
-    double *b = stack + (size_t)(sp - 2) * CHUNK; /* second (binary: b op a) */
+    /* top (unary) and second (binary: b op a); formed only when they exist
+     * (a pointer before the stack is undefined even unused) */
+    double *a = sp >= 1 ? stack + (size_t)(sp - 1) * CHUNK : stack;
+    double *b = sp >= 2 ? stack + (size_t)(sp - 2) * CHUNK : stack;
     switch (in->op) {
     case OP_CONST: {
       double *t = stack + (size_t)sp++ * CHUNK;

@@ -7,6 +7,7 @@
 #include <limits.h>
 #include <math.h>
 #include <pthread.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
@@ -84,14 +85,15 @@ int gr_kb_read_all(const char *path, unsigned char **buf, size_t *n) {
   return 0;
 }
 
-/* Write data to `path` atomically: a unique temporary "<path>.tmp-XXXXXX" in
- * the same directory, fsync, rename. On failure the temporary is removed. */
+/* Write data to `path` atomically: a unique temporary "<path>.tmp-PID-XXXXXX"
+ * in the same directory (the writer's process id lets a later job tell a
+ * dead writer's leftover from a live one), fsync, rename. On failure the
+ * temporary is removed. */
 int gr_kb_write_atomic(const char *path, const void *data, size_t n, gr_err *e) {
   size_t np = strlen(path);
-  char *tmp = malloc(np + 12);
+  char *tmp = malloc(np + 40);
   if (!tmp) return gr_fail(e, GR_EMEM, "out of memory");
-  memcpy(tmp, path, np);
-  memcpy(tmp + np, ".tmp-XXXXXX", 12);
+  snprintf(tmp, np + 40, "%s.tmp-%ld-XXXXXX", path, (long)getpid());
   int fd = mkstemp(tmp);
   if (fd < 0) {
     int err = errno;
@@ -290,6 +292,17 @@ static int list_dir(const char *dir, names *ns, gr_err *e) {
 }
 
 static int is_temp_name(const char *s) { return strstr(s, ".tmp-") != NULL; }
+
+/* Whether temporary `name` may still be written: its writer's process
+ * ("<file>.tmp-PID-XXXXXX") is alive. The older "<file>.tmp-XXXXXX" names
+ * (no PID) come only from earlier versions or crashes: debris. */
+static int temp_in_use(const char *name) {
+  const char *t = strstr(name, ".tmp-") + 5;
+  char *end;
+  long pid = strtol(t, &end, 10);
+  if (end != t && *end == '-' && pid > 0) return kill((pid_t)pid, 0) == 0 || errno == EPERM;
+  return 0;
+}
 
 /* "<64 hex>.gtp" -> key in k; else 0. */
 static int blob_name_key(const char *s, char k[65]) {
@@ -494,7 +507,7 @@ static int sweep_temps(gr_kb *kb, int remove, gr_kb_report *r, msgs *m, gr_err *
     int rc = list_dir(d, &ns, e);
     if (rc) { free(d); return rc; }
     for (size_t i = 0; i < ns.n; i++) {
-      if (!is_temp_name(ns.v[i])) continue;
+      if (!is_temp_name(ns.v[i]) || temp_in_use(ns.v[i])) continue;
       r->orphans++;
       char *p = gr_kb_join(d, ns.v[i]);
       if (remove && p && unlink(p) == 0) {
@@ -609,6 +622,14 @@ int gr_kb_prune(gr_kb *kb, const gr_kb_prune_opts *opts, gr_kb_report *r, gr_err
   }
   lock_drop(kb, fd);
   gr_kb_entries_free(c.good.v, c.good.n);
+  r->messages = m.p;
+  return rc;
+}
+
+int gr_kb_sweep(gr_kb *kb, gr_kb_report *r, gr_err *e) {
+  memset(r, 0, sizeof *r);
+  msgs m = {0};
+  int rc = sweep_temps(kb, 1, r, &m, e);
   r->messages = m.p;
   return rc;
 }

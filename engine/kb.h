@@ -144,4 +144,10 @@ typedef struct gr_kb_prune_opts {
 int gr_kb_prune(gr_kb *kb, const gr_kb_prune_opts *opts, gr_kb_report *r,
                 gr_err *e);
 
+/* Remove the temporary files that writers which are no longer running left
+ * in the knowledge base (a job killed while storing a template); live
+ * writers' temporaries are kept. r->removed counts them, r->messages names
+ * them. Every job calls this when it opens the knowledge base. */
+int gr_kb_sweep(gr_kb *kb, gr_kb_report *r, gr_err *e);
+
 #endif

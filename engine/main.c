@@ -1,7 +1,10 @@
 /* main.c: the `gradus` executable. It opens a Lua state with the standard
  * libraries and the gradus module, adds the terminal functions the REPL and
  * progress reports need (readline, isatty), and hands the command line to
- * lua/gradus/host.lua inside one protected call (as lua.c does). */
+ * lua/gradus/host.lua inside one protected call (as lua.c does).
+ * It also owns what only the process can do: the Lua allocator with its
+ * memory cap and the instruction/time hook (the --sandbox limits), and the
+ * Ctrl-C handler that asks the job to stop (engine/interrupt.h). */
 #include <lauxlib.h>
 #include <lua.h>
 #include <lualib.h>
@@ -11,9 +14,119 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
+#include "interrupt.h"
 
 int luaopen_gradus(lua_State *L);
+
+/* The Lua heap's account and the sandbox limits; the allocator's user data,
+ * so that the hook finds it with lua_getallocf. */
+#define HOOK_EVERY 1000 /* instructions between two looks at the limits */
+typedef struct host_limits {
+  size_t used, cap;     /* Lua heap bytes in use; cap 0 = no limit */
+  long long steps;      /* instructions counted (in HOOK_EVERY steps) */
+  long long max_steps;  /* 0 = no limit */
+  double deadline;      /* CLOCK_MONOTONIC seconds; 0 = no limit */
+  char library[4096];   /* sources under this prefix are gradus's own code */
+  char tripped[160];    /* the limit reached, "" while none */
+} host_limits;
+
+static void *h_alloc(void *ud, void *ptr, size_t osize, size_t nsize) {
+  host_limits *m = ud;
+  if (!ptr) osize = 0;
+  if (nsize == 0) {
+    free(ptr);
+    m->used -= osize;
+    return NULL;
+  }
+  if (m->cap && nsize > osize && m->used - osize + nsize > m->cap) {
+    if (!m->tripped[0]) snprintf(m->tripped, sizeof m->tripped, "memory limit of %zu MiB reached", m->cap >> 20);
+    return NULL;
+  }
+  void *p = realloc(ptr, nsize);
+  if (p) m->used = m->used - osize + nsize;
+  return p;
+}
+
+static double now_s(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+/* Is the running function gradus's own Lua code (or C)? Limits stop the
+ * recipe, not the host's clean-up after it. */
+static int in_library(lua_State *L, const host_limits *m) {
+  lua_Debug ar;
+  if (!lua_getstack(L, 0, &ar) || !lua_getinfo(L, "S", &ar)) return 1;
+  if (ar.source[0] != '@') return ar.source[0] == '=' && !strcmp(ar.source, "=[C]");
+  return m->library[0] && !strncmp(ar.source + 1, m->library, strlen(m->library));
+}
+
+static void h_hook(lua_State *L, lua_Debug *ar);
+
+static void set_hook(lua_State *L, const host_limits *m) {
+  if (m->max_steps || m->deadline > 0) lua_sethook(L, h_hook, LUA_MASKCOUNT, HOOK_EVERY);
+  else lua_sethook(L, NULL, 0, 0);
+}
+
+/* Ctrl-C first (raised once, anywhere), then the sandbox limits: once one is
+ * reached every later look raises again while the recipe's code runs, so a
+ * pcall in the recipe cannot outlast it. */
+static void h_hook(lua_State *L, lua_Debug *ar) {
+  void *ud;
+  lua_getallocf(L, &ud);
+  host_limits *m = ud;
+  char where[300] = ""; /* the line running now: where the recipe stopped */
+  if (lua_getinfo(L, "Sl", ar) && ar->currentline > 0)
+    snprintf(where, sizeof where, "%s:%d: ", ar->short_src, ar->currentline);
+  if (gr_interrupted() == 1) {
+    gr_interrupt_reported();
+    set_hook(L, m);
+    luaL_error(L, "%sinterrupted (Ctrl-C)", where);
+  }
+  if (ar->event != LUA_HOOKCOUNT) return;
+  m->steps += HOOK_EVERY;
+  if (!m->tripped[0] && m->max_steps && m->steps > m->max_steps)
+    snprintf(m->tripped, sizeof m->tripped, "instruction limit of %lld reached", m->max_steps);
+  if (!m->tripped[0] && m->deadline > 0 && now_s() > m->deadline)
+    snprintf(m->tripped, sizeof m->tripped, "time limit reached");
+  if (m->tripped[0] && !in_library(L, m)) luaL_error(L, "%ssandbox: %s", where, m->tripped);
+}
+
+/* term.limits{memory = MiB, instructions = n, seconds = s, library = prefix}:
+ * set once by the host for --sandbox (the recipe never sees term). */
+static int t_limits(lua_State *L) {
+  luaL_checktype(L, 1, LUA_TTABLE);
+  void *ud;
+  lua_getallocf(L, &ud);
+  host_limits *m = ud;
+  lua_getfield(L, 1, "memory");
+  lua_getfield(L, 1, "instructions");
+  lua_getfield(L, 1, "seconds");
+  lua_getfield(L, 1, "library");
+  double mib = luaL_optnumber(L, -4, 0), secs = luaL_optnumber(L, -2, 0);
+  m->cap = mib > 0 ? (size_t)(mib * 1048576.0) : 0;
+  if (m->cap && m->cap < m->used + ((size_t)8 << 20)) m->cap = m->used + ((size_t)8 << 20);
+  m->max_steps = (long long)luaL_optnumber(L, -3, 0);
+  m->deadline = secs > 0 ? now_s() + secs : 0;
+  snprintf(m->library, sizeof m->library, "%s", luaL_optstring(L, -1, ""));
+  m->tripped[0] = 0;
+  m->steps = 0;
+  set_hook(L, m);
+  return 0;
+}
+
+/* term.limit_reached() -> the sandbox limit reached ("memory limit of ...") or nil */
+static int t_limit_reached(lua_State *L) {
+  void *ud;
+  lua_getallocf(L, &ud);
+  const host_limits *m = ud;
+  if (!m->tripped[0]) return 0;
+  lua_pushstring(L, m->tripped);
+  return 1;
+}
 
 /* term.readline(prompt) -> line or nil at end of input. Uses GNU readline on
  * a terminal, plain fgets otherwise (no prompt echo when input is piped). */
@@ -63,7 +176,25 @@ static int t_write_history(lua_State *L) {
 static const luaL_Reg term_fns[] = {
     {"readline", t_readline},           {"add_history", t_add_history},
     {"isatty", t_isatty},               {"read_history", t_read_history},
-    {"write_history", t_write_history}, {NULL, NULL}};
+    {"write_history", t_write_history}, {"limits", t_limits},
+    {"limit_reached", t_limit_reached}, {NULL, NULL}};
+
+static int on_panic(lua_State *L) {
+  const char *msg = lua_tostring(L, -1);
+  fprintf(stderr, "gradus: unprotected Lua error: %s\n", msg ? msg : "(not a string)");
+  return 0; /* abort */
+}
+
+/* The state the SIGINT handler stops (as lua.c keeps one). */
+static lua_State *signal_state;
+
+/* First Ctrl-C: ask the job to stop (the layer writer and the Lua hook look
+ * at the flag); a second one ends the process at once. */
+static void on_sigint(int sig) {
+  signal(sig, SIG_DFL);
+  gr_interrupt_request();
+  lua_sethook(signal_state, h_hook, LUA_MASKCALL | LUA_MASKRET | LUA_MASKLINE | LUA_MASKCOUNT, 1);
+}
 
 /* Message handler: keep the error value, append a traceback (host.lua
  * shortens it to the recipe's frames). */
@@ -99,12 +230,17 @@ static int pmain(lua_State *L) {
 }
 
 int main(int argc, char **argv) {
-  lua_State *L = luaL_newstate();
+  host_limits lim; /* outlives the state: closed below */
+  memset(&lim, 0, sizeof lim);
+  lua_State *L = lua_newstate(h_alloc, &lim);
+  if (L) lua_atpanic(L, on_panic);
   if (!L) {
     fprintf(stderr, "gradus: cannot create Lua state: not enough memory\n");
     return 1;
   }
   signal(SIGPIPE, SIG_IGN);
+  signal_state = L;
+  signal(SIGINT, on_sigint);
   lua_pushcfunction(L, msghandler);
   lua_pushcfunction(L, pmain);
   lua_pushinteger(L, argc);

@@ -118,8 +118,8 @@ int gr_mesh_topology(const gr_mesh *m, gr_mesh_topo *t, gr_err *e) {
   }
   qsort(h, nh, sizeof *h, half_cmp);
   for (size_t i = 0; i < nh;) {
-    size_t j = i, nf = 0, nb = 0;
-    while (j < nh && h[j].a == h[i].a && h[j].b == h[i].b) { nf += h[j].fwd; nb += !h[j].fwd; j++; }
+    size_t j = i, nf = 0;
+    while (j < nh && h[j].a == h[i].a && h[j].b == h[i].b) { nf += h[j].fwd; j++; }
     t->edges++;
     size_t use = j - i;
     if (use == 1) t->boundary_edges++;
@@ -505,8 +505,13 @@ static int read_ply(const char *path, const char *s, size_t len, gr_mesh *m, gr_
     } else if (!strcmp(w, "element")) {
       word(&x, w, sizeof w);
       double n;
-      if (!number(&x, &n) || n < 0)
+      if (!number(&x, &n) || n < 0 || n != floor(n))
         return gr_fail(e, GR_EPARSE, "%s:%zu: bad element count", path, x.line);
+      /* every element takes at least one byte: bound the count by the file
+       * (this also keeps the conversion to long defined) */
+      if (n > (double)len || n > UINT32_MAX)
+        return gr_fail(e, GR_EPARSE, "%s:%zu: element count %.0f exceeds what the file's %zu bytes can hold",
+                       path, x.line, n, len);
       if (!strcmp(w, "vertex")) { nv = (long)n; cur = 1; }
       else if (!strcmp(w, "face")) { nf = (long)n; cur = 2; }
       else if (n > 0) return gr_fail(e, GR_EPARSE, "%s:%zu: unsupported PLY element '%s'", path, x.line, w);
@@ -552,7 +557,7 @@ static int read_ply(const char *path, const char *s, size_t len, gr_mesh *m, gr_
     for (long i = 0; i < nf; i++) {
       double c, t;
       long idx[3] = {0, 0, 0};
-      if (!number(&x, &c) || c < 3)
+      if (!number(&x, &c) || c < 3 || c > (double)len)
         return gr_fail(e, GR_EPARSE, "%s:%zu: bad face vertex count", path, x.line);
       for (int k = 0; k < (int)c; k++) {
         if (!number(&x, &t) || t < 0 || t >= (double)nv)
@@ -601,12 +606,29 @@ static int read_ply(const char *path, const char *s, size_t len, gr_mesh *m, gr_
   return GR_OK;
 }
 
+static gr_mesh *parse_mesh(const char *path, char *s, size_t len, gr_err *e);
+
 gr_mesh *gr_mesh_read(const char *path, gr_err *e) {
   gr_err_clear(e);
   if (!path) { gr_fail(e, GR_EARG, "path must not be NULL"); return NULL; }
   size_t len;
   char *s = slurp(path, &len, e);
   if (!s) return NULL;
+  return parse_mesh(path, s, len, e);
+}
+
+gr_mesh *gr_mesh_read_mem(const char *name, const void *data, size_t len, gr_err *e) {
+  gr_err_clear(e);
+  if (!name || (!data && len)) { gr_fail(e, GR_EARG, "name and data must not be NULL"); return NULL; }
+  char *s = malloc(len + 1);
+  if (!s) { gr_fail(e, GR_EMEM, "out of memory reading %s", name); return NULL; }
+  if (len) memcpy(s, data, len);
+  s[len] = 0;
+  return parse_mesh(name, s, len, e);
+}
+
+/* Parse the NUL-terminated contents s (len bytes) of `path` and free s. */
+static gr_mesh *parse_mesh(const char *path, char *s, size_t len, gr_err *e) {
   gr_mesh *m = gr_mesh_new();
   int rc;
   if (!m) rc = gr_fail(e, GR_EMEM, "out of memory reading %s", path);

@@ -40,5 +40,9 @@ int gr_mesh_write(const gr_mesh *m, const char *path, const char *format,
 /* Reads STL (ASCII or binary; coincident vertices merged), OBJ, PLY (ASCII
  * and binary little-endian). Errors name path and line/offset. */
 gr_mesh *gr_mesh_read(const char *path, gr_err *e);
+/* The same readers on a file's contents in memory (len bytes, need not be
+ * NUL-terminated); `name` stands for the path in messages and picks OBJ by
+ * its ".obj" ending. Used by the fuzzing harness. */
+gr_mesh *gr_mesh_read_mem(const char *name, const void *data, size_t len, gr_err *e);
 
 #endif

@@ -271,7 +271,7 @@ int gr_layer_add(gr_layer *l, int shape, int kind, int laser, int dir,
                  const double *xy, size_t n) {
   if (gr_grow(&l->xy, &l->cappts, l->npts + n, 2 * sizeof(double))) return GR_EMEM;
   if (gr_grow(&l->b, &l->capb, l->nb + 1, sizeof *l->b)) return GR_EMEM;
-  memcpy(l->xy + 2 * l->npts, xy, n * 2 * sizeof(double));
+  if (n) memcpy(l->xy + 2 * l->npts, xy, n * 2 * sizeof(double)); /* l->xy may be NULL when n == 0 */
   l->b[l->nb++] = (gr_block){shape, kind, laser, dir, l->npts, n};
   l->npts += n;
   return GR_OK;
@@ -297,7 +297,7 @@ int gr_layer_append(gr_layer *dst, const gr_layer *src, double dx, double dy) {
   if (gr_grow(&dst->b, &dst->capb, dst->nb + src->nb, sizeof *dst->b)) return GR_EMEM;
   for (size_t i = 0; i < src->nb; i++) {
     gr_block b = src->b[i];
-    const double *p = src->xy + 2 * b.start;
+    const double *p = b.n ? src->xy + 2 * b.start : NULL; /* an empty block has no points to offset */
     b.start = dst->npts;
     for (size_t k = 0; k < b.n; k++) {
       dst->xy[2 * (dst->npts + k)] = p[2 * k] + dx;

@@ -5,6 +5,7 @@ local M = {}
 
 local USAGE = [[
 usage: gradus run RECIPE [-D name=value]... [-o OUTPUT] [--stats FILE] [-q] [--allow-unused]
+                   [--sandbox] [--limits memory=MiB,instructions=N,seconds=S]
        gradus run RECIPE --help    the recipe's parameters: defaults, units, ranges
        gradus sweep RECIPE -D name=v1,v2,... -D other=a:b:step [-j N] [-o DIR]
        gradus cli info FILE        layers, bounds, counts and lengths of a CLI file
@@ -15,7 +16,9 @@ usage: gradus run RECIPE [-D name=value]... [-o OUTPUT] [--stats FILE] [-q] [--a
 
 Recipes are Lua files (see recipes/ and doc/guide.md). They read -D values
 with gradus.param(name, default [, spec]); -o with gradus.output(default).
-A -D name the recipe does not declare is an error (nothing is written).]]
+A -D name the recipe does not declare is an error (nothing is written).
+Recipes are trusted code (they can run programs and write any file);
+run recipes from others with --sandbox (doc/safety.md).]]
 
 local function eprint(...)
   io.stderr:write(table.concat({ ... }, " "), "\n")
@@ -94,8 +97,9 @@ function M.recipe_env()
 end
 
 --- Run a recipe file with parameters. opts: output, stats, quiet, help
--- (list the recipe's parameters instead of running it), allow_unused.
--- Returns true, or false and the error message.
+-- (list the recipe's parameters instead of running it), allow_unused, sandbox
+-- (true or {memory = MiB, instructions = n, seconds = s}: gradus.sandbox).
+-- Returns true, or false, the error message and the job's context.
 function M.run(path, params, opts)
   opts = opts or {}
   local strict = require "gradus.strict"
@@ -103,16 +107,30 @@ function M.run(path, params, opts)
     quiet = opts.quiet, recipe = path, help = opts.help, allow_unused = opts.allow_unused }
   local saved = gradus._ctx
   gradus._ctx = ctx
-  local chunk, err = loadfile(path, "t", M.recipe_env())
+  local env, sandbox = M.recipe_env(), nil
+  if opts.sandbox then
+    sandbox = require "gradus.sandbox"
+    local sok, serr = pcall(sandbox.start, ctx, type(opts.sandbox) == "table" and opts.sandbox or nil)
+    if not sok then gradus._ctx = saved return false, "gradus: --sandbox: " .. tostring(serr), ctx end
+    env = sandbox.env(ctx.sandbox)
+  end
+  local chunk, err = loadfile(path, "t", env)
   local ok = chunk ~= nil
   if chunk then ok, err = xpcall(chunk, handler) end
+  if sandbox then
+    local limit = gradus.term and gradus.term.limit_reached()
+    sandbox.stop()
+    if not ok and limit and not tostring(err):find("sandbox: ", 1, true) then
+      err = ("sandbox: %s (%s)"):format(limit, tostring(err))
+    end
+  end
   -- unknown -D names stop the job at its first action (gradus.strict); a
   -- recipe that did nothing is checked here
   if ok and not ctx.help and not ctx.acted then ok, err = pcall(strict.check_unused, ctx) end
   gradus._ctx = saved
   if ctx.stop and ctx.stop.help or (ok and ctx.help) then print(strict.help_text(ctx)) return true end
-  if ctx.stop then return false, ctx.stop.msg end
-  if not ok then return false, err end
+  if ctx.stop then return false, ctx.stop.msg, ctx end
+  if not ok then return false, err, ctx end
   return true
 end
 
@@ -143,6 +161,12 @@ function M.parse_args(args, first)
       o.allow_unused = true
     elseif a == "-q" or a == "--quiet" then
       o.quiet = true
+    elseif a == "--sandbox" then
+      o.sandbox = o.sandbox or true
+    elseif a == "--limits" then -- memory=MiB,instructions=N,seconds=S (implies --sandbox)
+      local lim = {}
+      for k, v in value():gmatch("(%a+)=([^,]+)") do lim[k] = tonumber(v) end
+      o.sandbox = lim
     elseif a == "-j" then
       o.jobs = tonumber(value())
       if not o.jobs or o.jobs < 1 then error("-j needs a positive number", 0) end
@@ -165,8 +189,17 @@ local function cmd_run(args)
   local f = io.open(recipe, "r")
   if not f then eprint("gradus: cannot open recipe " .. recipe) return 1 end
   f:close()
-  local rok, err = M.run(recipe, o.params, o)
-  if not rok then eprint(err) return 1 end
+  local rok, err, ctx = M.run(recipe, o.params, o)
+  if not rok then
+    eprint(err)
+    if gradus.fs.interrupted() ~= 0 then
+      local gone = ctx and ctx.removed_temporaries or {}
+      eprint(("gradus: stopped by Ctrl-C; no output was replaced%s"):format(#gone > 0 and
+        ("; temporaries removed: " .. table.concat(gone, ", ")) or ""))
+      return 130
+    end
+    return 1
+  end
   return 0
 end
 
@@ -226,6 +259,7 @@ function M.repl()
     if not chunk then
       print(err)
     else
+      gradus.fs.clear_interrupt() -- a Ctrl-C at the prompt does not stop the next command
       local res = table.pack(xpcall(chunk, function(e) return tostring(e) end))
       if not res[1] then
         print(res[2])

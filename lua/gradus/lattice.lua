@@ -169,7 +169,7 @@ end
 -- or an STL file); p.skin (mm).
 -- Writes the CLI to `out`, the manifest beside it, stats to --stats, and SVG
 -- pictures of p.pictures layers. Returns the stats table.
-function M.run(p, out)
+local function run(p, out)
   strict.action()
   p = checked(p)
   local cells, origin = p.cells, p.origin
@@ -329,5 +329,7 @@ function M.run(p, out)
   gradus.write_stats(st)
   return st, kept
 end
+-- one job: CLI, manifest, pictures and stats are renamed into place together
+function M.run(p, out) return gradus.outputs.job(run, p, out) end
 
 return M

@@ -117,10 +117,13 @@ end
 gradus.dirname = dirname
 
 --- gradus.write_file(path, text): write atomically (temporary file + rename),
--- creating parent directories; an error leaves nothing behind.
+-- creating parent directories; an error leaves nothing behind. Only a
+-- regular file is replaced; inside a job (gradus.outputs.job) the file is
+-- renamed into place with the job's other outputs.
 function gradus.write_file(path, text)
   gradus.mkdir(dirname(path))
-  local tmp = path .. ".tmp" .. tostring(os.time()) .. tostring(math.random(1e6))
+  local dest = gradus.outputs.stage(path)
+  local tmp = dest .. ".tmp" .. gradus.fs.pid()
   local f, err = io.open(tmp, "wb")
   if not f then error("cannot write " .. path .. ": " .. tostring(err), 2) end
   local ok, werr = f:write(text)
@@ -129,7 +132,7 @@ function gradus.write_file(path, text)
     os.remove(tmp)
     error("cannot write " .. path .. ": " .. tostring(werr or cerr), 2)
   end
-  local rok, rerr = os.rename(tmp, path)
+  local rok, rerr = os.rename(tmp, dest)
   if not rok then
     os.remove(tmp)
     error("cannot write " .. path .. ": " .. tostring(rerr), 2)
@@ -279,6 +282,7 @@ function gradus.progress(label, done, total)
 end
 
 gradus.svg = require "gradus.svg"
+gradus.outputs = require "gradus.outputs"
 
 --- gradus.help(x): help text of a function, table or object of the module
 -- (from doc/api/*.md).
