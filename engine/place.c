@@ -2288,14 +2288,17 @@ int gr_job_run(gr_job *j, const gr_job_run_opts *r, gr_err *e) {
   ba.items = items;
   ba.jb = -1;
   if (!r->direct) {
-    /* every class's template, once (from the knowledge base when there) */
+    /* every class used by a row in [ga, gb], once (from the knowledge base
+     * when there): a class may recur in rows its representative is not in */
     int n = 0;
-    for (int c = 0; c < j->ncls; c++) {
-      int i, jj, k;
-      voxel_ijk(j, j->cls[c].rep, &i, &jj, &k);
+    for (int c = 0; c < j->ncls; c++) items[c] = 0;
+    for (int k = 0; k < j->o.n[2]; k++) {
       int g0 = row_first_layer(j, k), g1 = g0 + row_layers(j, k) - 1;
-      if (g1 >= ga && g0 <= gb) items[n++] = c;
+      if (g1 < ga || g0 > gb) continue;
+      for (int q = 0; q < j->rowcount[k]; q++) items[j->vcls[j->roworder[(size_t)k * j->rowlen + q]]] = 1;
     }
+    for (int c = 0; c < j->ncls; c++)
+      if (items[c]) items[n++] = c;
     ba.nitems = n;
     rc = build_classes(j, &ba, r, "templates", e);
     j->st.seconds[1] = gr_now() - t1;
