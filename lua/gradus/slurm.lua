@@ -64,18 +64,32 @@ function M.missing()
 end
 
 -- The output of a shell command (stdout and stderr) and whether it succeeded.
-local function capture(cmd)
+function M.capture(cmd)
   local p = io.popen(cmd .. " 2>&1")
   local out = p:read("a")
   local ok = p:close()
   return out, ok == true
 end
 
+local capture = M.capture
+
+--- A note when dir lies on a file system only this node sees (tmpfs,
+-- ramfs): array tasks on other nodes would not find it. nil otherwise.
+function M.local_fs_note(dir, what)
+  local t = capture("stat -f -c %T " .. q(dir)):gsub("%s+$", "")
+  if t == "tmpfs" or t == "ramfs" then
+    return ("slurm: note: the %s %s is on %s, which only this node sees: on a cluster of several nodes "
+      .. "put it on a shared file system (doc/cluster.md)"):format(what, dir, t)
+  end
+  return nil
+end
+
 local cwd_cache
 local function abs(path)
   if path:sub(1, 1) == "/" then return path end
   cwd_cache = cwd_cache or (capture("pwd -P"):gsub("%s+$", ""))
-  return cwd_cache .. "/" .. path
+  if path == "." then return cwd_cache end
+  return cwd_cache .. "/" .. (path:gsub("^%./", ""))
 end
 M.abs = abs
 
@@ -230,6 +244,8 @@ end
 function M.sweep(recipe, plan, dir, so, quiet)
   dir = abs(dir)
   gradus.mkdir(dir)
+  local note = M.local_fs_note(dir, "result directory")
+  if note then print(note) end
   local todo = {}
   for n = 1, #plan.combos do
     local base = sweep.base(dir, n)

@@ -132,7 +132,7 @@ end
 -- gradus.cli.cat), their manifests (PART.manifest.yaml, when every part has
 -- one) into OUT.manifest.yaml, and, with stats_out, their stats (PART.yaml)
 -- into stats_out. Returns the cat info {layers=, first=, last=, layer_mm=}.
-function M.cat(parts, out, stats_out)
+function M.cat(parts, out, stats_out, extra)
   M.same_job(parts)
   local ok, info = pcall(gradus.cli.cat, parts, out)
   if not ok then error((tostring(info):gsub("^[^\n]-%.lua:%d+: ", "")), 0) end
@@ -160,7 +160,9 @@ function M.cat(parts, out, stats_out)
       local pa, pb = a.parameters and a.parameters.layers, b.parameters and b.parameters.layers
       return (tonumber(tostring(pa):match("^(%d+)")) or 0) < (tonumber(tostring(pb):match("^(%d+)")) or 0)
     end)
-    gradus.yaml.save(stats_out, M.merge_stats(list))
+    local m = M.merge_stats(list)
+    if extra then for k, v in pairs(extra) do m[k] = v end end
+    gradus.yaml.save(stats_out, m)
   end
   return info
 end
@@ -326,8 +328,10 @@ local function failed_parts(work, list, total, n)
   return table.concat(lines, "\n")
 end
 
--- Submit what is left of the split job and wait for it. Returns true or nil, message.
-local function submit_and_follow(recipe, work, n, params, order, so, quiet)
+-- Submit what is left of the split job and wait for it. Returns the number
+-- of layers or nil, message. times: wall seconds of the stages (filled in).
+local function submit_and_follow(recipe, work, n, params, order, so, quiet, times)
+  local t0 = gradus.clock()
   local script = work .. "/job.sbatch"
   gradus.write_file(script, run_script(recipe, work, n, params, order, so))
   local tid
@@ -365,11 +369,13 @@ local function submit_and_follow(recipe, work, n, params, order, so, quiet)
     end
     total = tonumber(read_all(work .. "/layers_total") or "")
   end
+  times.templates_s = gradus.clock() - t0
   if lid then
     local tasks = {}
     for k, i in ipairs(todo) do tasks[k] = { status = part_base(work, i) .. ".status" } end
     slurm.follow(lid, tasks, "layers", quiet)
   end
+  times.layers_s = gradus.clock() - t0 - times.templates_s
   local bad = {}
   for i = 1, n do if not part_done(work, i, n, total) then bad[#bad + 1] = i end end
   if #bad > 0 then
@@ -411,16 +417,31 @@ function M.main(args)
   if prepare_work(work, table.concat(id, "\n") .. "\n") then
     print(("slurm: %s: %d layer tasks, knowledge base %s"):format(work, n, params.kb))
   end
-  local total, err = submit_and_follow(recipe, work, n, params, order, so, o.quiet)
+  if params.kb ~= "off" then gradus.mkdir(params.kb) end
+  for _, d in ipairs({ { work, "work directory" }, { params.kb ~= "off" and params.kb or nil, "knowledge base" } }) do
+    local note = d[1] and slurm.local_fs_note(d[1], d[2])
+    if note then print(note) end
+  end
+  local times = { tasks = n }
+  local total, err = submit_and_follow(recipe, work, n, params, order, so, o.quiet, times)
   if not total then eprint("gradus: " .. err) return 1 end
   local parts = {}
   for i = 1, n do
     local a, b = M.range(i, n, total)
     if a <= b then parts[#parts + 1] = part_base(work, i) .. ".cli" end
   end
-  local cok, info = pcall(M.cat, parts, out, o.stats)
+  local t1 = gradus.clock()
+  local cok, info = pcall(M.cat, parts, out, o.stats, { slurm = times })
   if not cok then eprint("gradus: " .. tostring(info)) return 1 end
+  times.merge_s = gradus.clock() - t1
+  if o.stats then -- the merge's own time, now known
+    local st = gradus.yaml.load(o.stats)
+    st.slurm.merge_s = times.merge_s
+    gradus.yaml.save(o.stats, st)
+  end
   print(("%s: %d layers merged from %d parts (%s)"):format(o.output, info.layers, #parts, work))
+  print(("slurm: wall time: templates stage %.1f s (from submission), layer tasks %.1f s, merge %.1f s")
+    :format(times.templates_s, times.layers_s, times.merge_s))
   return 0
 end
 

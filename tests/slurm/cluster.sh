@@ -74,6 +74,11 @@ cluster_start() {
 # stop the daemons this shell started, by pid, newest first
 cluster_stop() {
   local i pid
+  # first the jobs still there (ours: SLURM_CONF is this cluster's), so no task outlives it
+  if [ ${#CLUSTER_PIDS[@]} -gt 0 ] && [ -n "${SLURM_CONF:-}" ]; then
+    scancel -u "$(id -un)" >/dev/null 2>&1
+    cluster_wait "[ -z \"\$(squeue -h -o %i 2>/dev/null)\" ]" 100
+  fi
   for ((i = ${#CLUSTER_PIDS[@]} - 1; i >= 0; i--)); do
     pid=${CLUSTER_PIDS[$i]}
     kill -TERM "$pid" 2>/dev/null
