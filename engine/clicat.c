@@ -45,41 +45,6 @@ static int cc_map(cc_part *p, gr_err *e) {
   return GR_OK;
 }
 
-/* Read one part: its layer table through the CLI reader, then where its
- * header and geometry lie. */
-static int cc_open(cc_part *p, gr_err *e) {
-  int rc = gr_cli_read(p->path, &p->h, cc_add_z, p, e);
-  if (rc) {
-    if (!strstr(e->msg, p->path)) { /* say which part */
-      char m[sizeof e->msg];
-      snprintf(m, sizeof m, "%s", e->msg);
-      gr_fail(e, rc, "%s: %s", p->path, m);
-    }
-    return rc;
-  }
-  if (p->nz == 0) return gr_fail(e, GR_EARG, "%s: no layers", p->path);
-  if (p->h.layers != (int)p->nz)
-    return gr_fail(e, GR_EPARSE, "%s: $$LAYERS/%d but the file holds %zu layers", p->path, p->h.layers, p->nz);
-  if ((rc = cc_map(p, e))) return rc;
-  const char *he = memmem(p->map, p->len, "$$HEADEREND", 11);
-  p->hdr_end = (size_t)(he - p->map) + 11; /* the reader found it */
-  if (p->h.binary) {
-    p->gs = p->hdr_end;
-    p->ge = p->len;
-    return GR_OK;
-  }
-  static const char gs[] = "\n$$GEOMETRYSTART\n", ge[] = "$$GEOMETRYEND\n";
-  size_t ngs = sizeof gs - 1, nge = sizeof ge - 1;
-  if (p->len < p->hdr_end + ngs + nge || memcmp(p->map + p->hdr_end, gs, ngs) ||
-      memcmp(p->map + p->len - nge, ge, nge))
-    return gr_fail(e, GR_EPARSE,
-                   "%s: not laid out as the gradus writer does ($$HEADEREND, $$GEOMETRYSTART on the next line, "
-                   "$$GEOMETRYEND as the last line): cannot merge it byte for byte", p->path);
-  p->gs = p->hdr_end + ngs;
-  p->ge = p->len - nge;
-  return GR_OK;
-}
-
 /* The header line starting at *pos (advanced past it), length in *n. */
 static const char *cc_line(const cc_part *p, size_t *pos, size_t *n) {
   const char *s = p->map + *pos;
@@ -87,6 +52,124 @@ static const char *cc_line(const cc_part *p, size_t *pos, size_t *n) {
   *n = nl ? (size_t)(nl - s) : p->hdr_end - *pos;
   *pos += *n + (nl ? 1 : 0);
   return s;
+}
+
+static uint32_t cc_u32(const char *p) {
+  const unsigned char *u = (const unsigned char *)p;
+  return (uint32_t)u[0] | (uint32_t)u[1] << 8 | (uint32_t)u[2] << 16 | (uint32_t)u[3] << 24;
+}
+
+/* The layer table of a binary part written by gradus (LONG commands 127
+ * layer, 130 polyline, 132 hatches), jumping from command to command.
+ * Returns 1 when another command shows up (the caller then reads the file
+ * with the full reader), 0 or an error. */
+static int cc_table_binary(cc_part *p, gr_err *e) {
+  size_t pos = p->gs;
+  while (pos < p->len) {
+    if (p->len - pos < 2) return gr_fail(e, GR_EPARSE, "%s: byte %zu: truncated command", p->path, pos);
+    unsigned cmd = (unsigned char)p->map[pos] | (unsigned)(unsigned char)p->map[pos + 1] << 8;
+    size_t need = cmd == 127 ? 6 : cmd == 130 ? 14 : cmd == 132 ? 10 : 0;
+    if (!need) return 1;
+    if (p->len - pos < need) return gr_fail(e, GR_EPARSE, "%s: byte %zu: truncated command %u", p->path, pos, cmd);
+    if (cmd == 127) {
+      uint32_t u = cc_u32(p->map + pos + 2);
+      float z;
+      memcpy(&z, &u, 4);
+      if (gr_grow(&p->z, &p->cap, p->nz + 1, sizeof *p->z)) return gr_fail(e, GR_EMEM, "out of memory");
+      p->z[p->nz++] = z * p->h.units;
+      pos += 6;
+      continue;
+    }
+    int32_t n = (int32_t)cc_u32(p->map + pos + (cmd == 130 ? 10 : 6));
+    size_t body = (size_t)(cmd == 130 ? 8 : 16) * (size_t)(n < 0 ? 0 : n);
+    if (n < 0 || (p->len - pos - need) < body)
+      return gr_fail(e, GR_EPARSE, "%s: byte %zu: command %u with %d points runs past the end", p->path, pos, cmd, n);
+    pos += need + body;
+  }
+  return 0;
+}
+
+/* The layer table of an ASCII part: its $$LAYER/ lines. */
+static int cc_table_ascii(cc_part *p, gr_err *e) {
+  const char *s = p->map + p->gs, *end = p->map + p->ge;
+  while (s < end) {
+    if (end - s > 8 && !memcmp(s, "$$LAYER/", 8)) {
+      char num[64];
+      size_t k = 0;
+      while (k + 1 < sizeof num && s + 8 + k < end && s[8 + k] != '\n') { num[k] = s[8 + k]; k++; }
+      num[k] = 0;
+      char *stop;
+      double z = strtod(num, &stop);
+      if (stop == num || *stop) return gr_fail(e, GR_EPARSE, "%s: byte %zu: bad $$LAYER '%s'", p->path, (size_t)(s - p->map), num);
+      if (gr_grow(&p->z, &p->cap, p->nz + 1, sizeof *p->z)) return gr_fail(e, GR_EMEM, "out of memory");
+      p->z[p->nz++] = z * p->h.units;
+    }
+    const char *nl = memchr(s, '\n', (size_t)(end - s));
+    s = nl ? nl + 1 : end;
+  }
+  return 0;
+}
+
+/* Header fields: units, layers, format, floor. */
+static int cc_header(cc_part *p, gr_err *e) {
+  const char *he = memmem(p->map, p->len, "$$HEADEREND", 11);
+  if (p->len < 13 || memcmp(p->map, "$$HEADERSTART", 13) || !he)
+    return gr_fail(e, GR_EPARSE, "%s:1: not a CLI file (no $$HEADERSTART ... $$HEADEREND)", p->path);
+  p->hdr_end = (size_t)(he - p->map) + 11;
+  p->h = gr_cli_header_defaults();
+  p->h.layers = -1;
+  size_t pos = 0, n;
+  while (pos < p->hdr_end) {
+    const char *l = cc_line(p, &pos, &n);
+    char c[256];
+    snprintf(c, sizeof c, "%.*s", (int)(n < 255 ? n : 255), l);
+    if (!strncmp(c, "$$BINARY", 8)) p->h.binary = 1;
+    else if (!strncmp(c, "$$UNITS/", 8)) p->h.units = strtod(c + 8, NULL);
+    else if (!strncmp(c, "$$LAYERS/", 9)) p->h.layers = atoi(c + 9);
+    else if (!strncmp(c, "$$DIMENSION/", 12)) sscanf(c + 12, "%*f,%*f,%lf", &p->h.lo[2]);
+  }
+  if (!(p->h.units > 0)) return gr_fail(e, GR_EPARSE, "%s: bad $$UNITS", p->path);
+  return GR_OK;
+}
+
+/* Read one part: where its header and geometry lie, and its layer table
+ * (from the layer commands alone; through the full CLI reader when the part
+ * holds commands the gradus writer does not write). */
+static int cc_open(cc_part *p, gr_err *e) {
+  int rc = cc_map(p, e);
+  if (!rc) rc = cc_header(p, e);
+  if (rc) return rc;
+  static const char gs[] = "\n$$GEOMETRYSTART\n", ge[] = "$$GEOMETRYEND\n";
+  size_t ngs = sizeof gs - 1, nge = sizeof ge - 1;
+  if (p->h.binary) {
+    p->gs = p->hdr_end;
+    p->ge = p->len;
+    rc = cc_table_binary(p, e);
+  } else {
+    if (p->len < p->hdr_end + ngs + nge || memcmp(p->map + p->hdr_end, gs, ngs) ||
+        memcmp(p->map + p->len - nge, ge, nge))
+      return gr_fail(e, GR_EPARSE,
+                     "%s: not a complete CLI laid out as the gradus writer does ($$GEOMETRYSTART after "
+                     "$$HEADEREND, $$GEOMETRYEND as the last line): cannot merge it byte for byte", p->path);
+    p->gs = p->hdr_end + ngs;
+    p->ge = p->len - nge;
+    rc = cc_table_ascii(p, e);
+  }
+  if (rc == 1) { /* another writer's commands: the full reader gives the table */
+    p->nz = 0;
+    gr_cli_header h;
+    rc = gr_cli_read(p->path, &h, cc_add_z, p, e);
+    if (rc && !strstr(e->msg, p->path)) { /* say which part */
+      char m[sizeof e->msg];
+      snprintf(m, sizeof m, "%s", e->msg);
+      gr_fail(e, rc, "%s: %s", p->path, m);
+    }
+  }
+  if (rc) return rc;
+  if (p->nz == 0) return gr_fail(e, GR_EARG, "%s: no layers", p->path);
+  if (p->h.layers != (int)p->nz)
+    return gr_fail(e, GR_EPARSE, "%s: $$LAYERS/%d but the file holds %zu layers", p->path, p->h.layers, p->nz);
+  return GR_OK;
 }
 
 /* The next header line that must agree between parts (all but $$LAYERS and

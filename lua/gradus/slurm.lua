@@ -187,6 +187,24 @@ function M.follow(id, tasks, label, quiet)
   end
 end
 
+--- Jobs submitted by an earlier command for the same results (ids in
+-- `file`) that are still in the queue (the user stopped following them,
+-- e.g. with Ctrl-C): wait until they have left it, so a rerun never runs a
+-- task twice. Then `file` holds `ids` (this submission's, may be empty).
+function M.adopt(file, quiet)
+  local s = M.read_all(file) or ""
+  for id in s:gmatch("%d+") do
+    local shown = false
+    while queued(id) do
+      if not shown and not quiet then eprint(("slurm: job %s from an earlier submission is still in the queue: waiting for it"):format(id)) end
+      shown = true
+      os.execute("sleep 2")
+    end
+  end
+end
+
+function M.remember(file, ids) gradus.write_file(file, table.concat(ids, " ") .. "\n") end
+
 -- A pending job whose dependency failed never starts.
 function M.never_runs(id)
   local out = capture("squeue -h -j " .. id .. " -o %r")
@@ -246,6 +264,7 @@ function M.sweep(recipe, plan, dir, so, quiet)
   gradus.mkdir(dir)
   local note = M.local_fs_note(dir, "result directory")
   if note then print(note) end
+  M.adopt(dir .. "/slurm.jobs", quiet)
   local todo = {}
   for n = 1, #plan.combos do
     local base = sweep.base(dir, n)
@@ -265,6 +284,7 @@ function M.sweep(recipe, plan, dir, so, quiet)
     local spec = array_spec(todo) .. (so.max_tasks and ("%" .. so.max_tasks) or "")
     local id, err = M.submit("--array=" .. spec, script)
     if not id then return nil, err end
+    M.remember(dir .. "/slurm.jobs", { id })
     print(("slurm: submitted job %s: %s --array=%s"):format(id, script, spec))
     io.stdout:flush()
     local tasks = {}

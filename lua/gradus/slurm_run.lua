@@ -347,6 +347,7 @@ local function submit_and_follow(recipe, work, n, params, order, so, quiet, time
   for i = 1, n do
     if not (total and part_done(work, i, n, total)) then todo[#todo + 1] = i end
   end
+  if tid then slurm.remember(work .. "/slurm.jobs", { tid }) end
   if #todo < n then print(("slurm: %d of %d parts finished earlier"):format(n - #todo, n)) end
   local lid
   if #todo > 0 then
@@ -358,6 +359,7 @@ local function submit_and_follow(recipe, work, n, params, order, so, quiet, time
       if tid then os.execute("scancel " .. tid) end
       return nil, err
     end
+    slurm.remember(work .. "/slurm.jobs", { tid or lid, lid })
     print(("slurm: submitted job %s: layers --array=%s of %d"):format(lid, spec, n))
   end
   io.stdout:flush()
@@ -414,6 +416,8 @@ function M.main(args)
   end
   local id = { abs(recipe), "N=" .. n }
   for _, k in ipairs(order) do id[#id + 1] = k .. "=" .. params[k] end
+  gradus.mkdir(work)
+  slurm.adopt(work .. "/slurm.jobs", o.quiet)
   if prepare_work(work, table.concat(id, "\n") .. "\n") then
     print(("slurm: %s: %d layer tasks, knowledge base %s"):format(work, n, params.kb))
   end

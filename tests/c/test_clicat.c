@@ -105,6 +105,9 @@ TEST(other_jobs_refused) {
   refused(mixed, 2, "is ASCII but");
   const char *other[] = {job("y1.cli", 0, 1, 10, 2), job("y2.cli", 0, 11, 20, 3)};
   refused(other, 2, "are not parts of one job");
+  const char *cut[] = {job("t1.cli", 1, 1, 10, 2), job("t2.cli", 1, 11, 20, 2)};
+  CHECK(truncate(cut[1], 700) == 0, "cannot truncate %s", cut[1]);
+  refused(cut, 2, "t2.cli: byte "); /* names the part and the byte */
   const char *none[] = {"/nonexistent/part.cli"};
   refused(none, 1, "/nonexistent/part.cli");
 }

@@ -8,6 +8,7 @@
 # says how to install it.
 G=${GRADUS:-build/gradus}
 case $G in /*) ;; *) G=$PWD/$G ;; esac
+T="timeout -k 10 600" # a stuck queue fails the test instead of hanging it
 here=$(cd "$(dirname "$0")/.." && pwd)
 d=$(mktemp -d /tmp/gradus-slurm.XXXXXX)
 # same bytes but the $$DATE digits (the files may be written either side of midnight)
@@ -34,7 +35,7 @@ pass "a one-node Slurm cluster starts ($(sinfo -h -o '%P %D %T'))"
 # a 2 x 2 sweep: the same rows as a local sweep (all but the seconds column)
 SW=(recipes/lattice.lua -D cells=1,1,1 -D res=12 -D layer=0.1 -D thickness=0.1,0.12 -D hatch=0.05,0.06 -D kb="$d/kb")
 "$G" sweep "${SW[@]}" -o "$d/local" -q >"$d/local.out" 2>&1
-out=$("$G" sweep "${SW[@]}" -o "$d/slurm" --slurm -q 2>&1); rc=$?
+out=$($T "$G" sweep "${SW[@]}" -o "$d/slurm" --slurm -q 2>&1); rc=$?
 [ $rc = 0 ] && echo "$out" | grep -q "submitted job" && [ -s "$d/slurm/sweep.sbatch" ] &&
   pass "sweep through sbatch (script kept beside the results)" || fail "sweep through sbatch" "rc=$rc: $out"
 nosec() { sed -E 's/,[^,]*,[^,]*$//' "$1"; } # all but the last two columns (seconds, error)
@@ -49,7 +50,7 @@ for n in 1 2 3 4; do same "$d/local/run00$n.cli" "$d/slurm/run00$n.cli" || { fai
 # a 4-range split job: byte-identical to a local run, stats added up
 RUN=(recipes/lattice.lua -D cells=1,1,2 -D res=12 -D layer=0.1 -D kb="$d/kb2")
 "$G" run "${RUN[@]}" -q -o "$d/one.cli" --stats "$d/one.yaml" -D kb="$d/kb3" >/dev/null 2>&1
-out=$("$G" run "${RUN[@]}" -q -o "$d/split.cli" --stats "$d/split.yaml" --slurm 4 2>&1); rc=$?
+out=$($T "$G" run "${RUN[@]}" -q -o "$d/split.cli" --stats "$d/split.yaml" --slurm 4 2>&1); rc=$?
 [ $rc = 0 ] && [ "$(ls "$d"/split.parts/part0?.cli 2>/dev/null | wc -l)" = 4 ] && pass "split job: templates stage + 4 layer tasks" ||
   fail "split job" "rc=$rc: $out"
 same "$d/one.cli" "$d/split.cli" && pass "merged CLI = one local run, byte for byte" ||
@@ -63,7 +64,7 @@ for k in layers vectors.hatch.count jumps.count; do
 done
 # a lost part: the rerun submits only it
 rm -f "$d/split.parts/part02."* "$d/split.cli"
-out=$("$G" run "${RUN[@]}" -q -o "$d/split.cli" --slurm 4 2>&1); rc=$?
+out=$($T "$G" run "${RUN[@]}" -q -o "$d/split.cli" --slurm 4 2>&1); rc=$?
 [ $rc = 0 ] && echo "$out" | grep -q "3 of 4 parts finished earlier" && echo "$out" | grep -q "layers --array=2 of 4" &&
   ! echo "$out" | grep -q "templates (" && same "$d/one.cli" "$d/split.cli" &&
   pass "split rerun submits only the missing part" || fail "split rerun" "rc=$rc: $out"
@@ -80,7 +81,7 @@ end
 gradus.write_stats({ relative_density = a * b, build_time_s = a + b, seconds = { total = 0 } })
 L
 K=("$d/hang.lua" -D a=1,2 -D b=1,2 -D hang="$d/h" -o "$d/kill" --slurm -q)
-"$G" sweep "${K[@]}" >"$d/kill.out" 2>&1 &
+$T "$G" sweep "${K[@]}" >"$d/kill.out" 2>&1 &
 sp=$!
 cluster_wait "[ -e '$d/h.running' ]" 1200
 job=$(squeue -h -r -o '%i %j' | awk '$2=="gradus-sweep"{print $1}' | grep '_4$')
@@ -92,7 +93,7 @@ out=$(cat "$d/kill.out")
   fail "cancelled task reported" "job=$job rc=$rc: $out"
 [ "$(grep -c ',ok,' "$d/kill/sweep.csv")" = 3 ] && pass "the other 3 collected" || fail "the other 3 collected" "$(cat "$d/kill/sweep.csv")"
 touch "$d/h.release"
-out=$("$G" sweep "${K[@]}" 2>&1); rc=$?
+out=$($T "$G" sweep "${K[@]}" 2>&1); rc=$?
 [ $rc = 0 ] && echo "$out" | grep -q "3 of 4 combinations finished earlier; submitting 1" && echo "$out" | grep -q -- "--array=4$" &&
   [ "$(grep -c ',ok,' "$d/kill/sweep.csv")" = 4 ] && pass "rerun submits only the cancelled one, then 4 ok" ||
   fail "rerun submits only the cancelled one" "rc=$rc: $out"

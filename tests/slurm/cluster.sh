@@ -63,10 +63,10 @@ cluster_start() {
   export SLURM_CONF="$d/slurm.conf"
   slurmctld -D -i -f "$SLURM_CONF" >>"$d/log/slurmctld.out" 2>&1 &
   CLUSTER_PIDS+=($!)
-  cluster_wait "scontrol ping | grep -q UP" 150 || { cluster_why "slurmctld does not answer"; return 1; }
+  cluster_wait "scontrol ping | grep -q UP" 600 || { cluster_why "slurmctld does not answer"; return 1; }
   slurmd -D -N gradus1 -f "$SLURM_CONF" >>"$d/log/slurmd.out" 2>&1 &
   CLUSTER_PIDS+=($!)
-  cluster_wait "sinfo -h -N -o %T | grep -Eq '^(idle|mixed|allocated)'" 300 ||
+  cluster_wait "sinfo -h -N -o %T | grep -Eq '^(idle|mixed|allocated)'" 900 ||
     { sinfo -N >&2; cluster_why "the node did not come up"; return 1; }
   return 0
 }
