@@ -435,7 +435,7 @@ function M.main(args)
     if a <= b then parts[#parts + 1] = part_base(work, i) .. ".cli" end
   end
   local t1 = gradus.clock()
-  local cok, info = pcall(M.cat, parts, out, o.stats, { slurm = times })
+  local cok, info = pcall(M.cat, parts, o.output, o.stats, { slurm = times })
   if not cok then eprint("gradus: " .. tostring(info)) return 1 end
   times.merge_s = gradus.clock() - t1
   if o.stats then -- the merge's own time, now known

@@ -57,6 +57,8 @@ same "$d/one.cli" "$d/split.cli" && pass "merged CLI = one local run, byte for b
   fail "merged CLI = one local run" "$(cmp "$d/one.cli" "$d/split.cli" 2>&1)"
 grep -q "1 built" "$d/split.parts/templates.log" && grep -q "reused: 1" "$d/split.parts/part03.yaml" &&
   pass "templates built once, read by the layer tasks" || fail "templates built once" "$(cat "$d/split.parts/templates.log")"
+[ -s "$d/split.manifest.yaml" ] && diff <(grep -v '^cli:' "$d/one.manifest.yaml") <(grep -v '^cli:' "$d/split.manifest.yaml") >/dev/null &&
+  pass "merged manifest = local run's" || fail "merged manifest" "$(diff "$d/one.manifest.yaml" "$d/split.manifest.yaml" 2>&1 | head -5)"
 yget() { echo "print(gradus.yaml.load('$1').$2)" | "$G" 2>&1 | tail -n 1; }
 for k in layers vectors.hatch.count jumps.count; do
   a=$(yget "$d/split.yaml" $k); b=$(yget "$d/one.yaml" $k)
