@@ -191,12 +191,12 @@ end
 -- `file`) that are still in the queue (the user stopped following them,
 -- e.g. with Ctrl-C): wait until they have left it, so a rerun never runs a
 -- task twice. Then `file` holds `ids` (this submission's, may be empty).
-function M.adopt(file, quiet)
+function M.adopt(file)
   local s = M.read_all(file) or ""
   for id in s:gmatch("%d+") do
     local shown = false
     while queued(id) do
-      if not shown and not quiet then eprint(("slurm: job %s from an earlier submission is still in the queue: waiting for it"):format(id)) end
+      if not shown then eprint(("slurm: job %s from an earlier submission is still in the queue: waiting for it"):format(id)) end
       shown = true
       os.execute("sleep 2")
     end
@@ -264,7 +264,7 @@ function M.sweep(recipe, plan, dir, so, quiet)
   gradus.mkdir(dir)
   local note = M.local_fs_note(dir, "result directory")
   if note then print(note) end
-  M.adopt(dir .. "/slurm.jobs", quiet)
+  M.adopt(dir .. "/slurm.jobs")
   local todo = {}
   for n = 1, #plan.combos do
     local base = sweep.base(dir, n)

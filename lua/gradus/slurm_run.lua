@@ -417,7 +417,7 @@ function M.main(args)
   local id = { abs(recipe), "N=" .. n }
   for _, k in ipairs(order) do id[#id + 1] = k .. "=" .. params[k] end
   gradus.mkdir(work)
-  slurm.adopt(work .. "/slurm.jobs", o.quiet)
+  slurm.adopt(work .. "/slurm.jobs")
   if prepare_work(work, table.concat(id, "\n") .. "\n") then
     print(("slurm: %s: %d layer tasks, knowledge base %s"):format(work, n, params.kb))
   end

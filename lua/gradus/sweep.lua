@@ -167,7 +167,10 @@ function M.collect(plan, n, base, status)
   local lf = io.open(base .. ".log")
   local log = lf and lf:read("a") or ""
   if lf then lf:close() end
-  row.error = (log:gsub("%s+$", "")):match("[^\n]*$")
+  -- Slurm's own word on a task it ended (cancelled, time limit, node
+  -- failure, out of memory) beats whatever the shell printed last
+  row.error = log:match("[^\n]*%*%*%* JOB [^\n]*%*%*%*") or log:match("[^\n]*oom%-kill[^\n]*")
+    or (log:gsub("%s+$", "")):match("[^\n]*$")
   if row.error == "" then
     row.error = status and ("exit status " .. status) or "no exit status (the task was killed, timed out or never ran)"
   end

@@ -87,15 +87,26 @@ $T "$G" sweep "${K[@]}" >"$d/kill.out" 2>&1 &
 sp=$!
 cluster_wait "[ -e '$d/h.running' ]" 1200
 job=$(squeue -h -r -o '%i %j' | awk '$2=="gradus-sweep"{print $1}' | grep '_4$')
+# the same command again while that job is in the queue: it waits for it, never runs a task twice
+# (its resubmission may truncate run004.log before the first command reads Slurm's CANCELLED line
+# there: then the first one says "no exit status")
+$T "$G" sweep "${K[@]}" >"$d/again.out" 2>&1 &
+sp2=$!
+cluster_wait "grep -q 'still in the queue' '$d/again.out'" 1200
 if [ -n "$job" ]; then scancel "$job"; fi
 wait $sp; rc=$?
 out=$(cat "$d/kill.out")
-[ -n "$job" ] && [ $rc = 1 ] && echo "$out" | grep -q "sweep: failed run 4 (a=2 b=2): .*CANCELLED" &&
+[ -n "$job" ] && [ $rc = 1 ] && echo "$out" | grep -Eq "sweep: failed run 4 \(a=2 b=2\): (.*JOB ${job%_*}.* CANCELLED|no exit status)" &&
   echo "$out" | grep -qF "log $d/kill/run004.log" && pass "cancelled task reported with its log, exit 1" ||
   fail "cancelled task reported" "job=$job rc=$rc: $out"
 [ "$(grep -c ',ok,' "$d/kill/sweep.csv")" = 3 ] && pass "the other 3 collected" || fail "the other 3 collected" "$(cat "$d/kill/sweep.csv")"
 touch "$d/h.release"
-out=$($T "$G" sweep "${K[@]}" 2>&1); rc=$?
-[ $rc = 0 ] && echo "$out" | grep -q "3 of 4 combinations finished earlier; submitting 1" && echo "$out" | grep -q -- "--array=4$" &&
-  [ "$(grep -c ',ok,' "$d/kill/sweep.csv")" = 4 ] && pass "rerun submits only the cancelled one, then 4 ok" ||
+wait $sp2; rc=$?
+out=$(cat "$d/again.out")
+[ $rc = 0 ] && echo "$out" | grep -q "job ${job%_*} from an earlier submission is still in the queue" &&
+  echo "$out" | grep -q "3 of 4 combinations finished earlier; submitting 1" && echo "$out" | grep -q -- "--array=4$" &&
+  [ "$(grep -c ',ok,' "$d/kill/sweep.csv")" = 4 ] && pass "rerun waits for the queued job, submits only the cancelled one, then 4 ok" ||
   fail "rerun submits only the cancelled one" "rc=$rc: $out"
+out=$($T "$G" sweep "${K[@]}" 2>&1); rc=$?
+[ $rc = 0 ] && echo "$out" | grep -q "4 of 4 combinations finished earlier; submitting 0" && ! echo "$out" | grep -q "still in the queue" &&
+  pass "a third run submits nothing" || fail "a third run submits nothing" "rc=$rc: $out"

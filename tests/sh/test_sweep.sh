@@ -54,3 +54,11 @@ echo "$out" | grep -qF "sweep: failed run 1 (a=-1): " && echo "$out" | grep -qF 
 out=$($G sweep "$d/r.lua" -D a=1 --partition x -o "$d/s6" 2>&1); rc=$?
 [ $rc = 2 ] && echo "$out" | grep -q -- "--partition is a Slurm option: it needs --slurm" && pass "Slurm options need --slurm" ||
   fail "Slurm options need --slurm" "rc=$rc: $out"
+# a task Slurm ended: its reason from the log, not the shell's last word
+printf 'working\nslurmstepd: error: *** JOB 5 ON n1 CANCELLED AT 2026-01-01T00:00:00 DUE TO TIME LIMIT ***\nTerminated\n' > "$d/run001.log"
+got=$(echo "local r = require('gradus.sweep').collect({ combos = { {} } }, 1, '$d/run001', nil) print(r.status .. ': ' .. r.error)" | $G 2>&1 | tail -n 1)
+[ "$got" = "failed: slurmstepd: error: *** JOB 5 ON n1 CANCELLED AT 2026-01-01T00:00:00 DUE TO TIME LIMIT ***" ] &&
+  pass "Slurm's reason taken from a task's log" || fail "Slurm's reason from the log" "$got"
+: > "$d/run001.log"
+got=$(echo "local r = require('gradus.sweep').collect({ combos = { {} } }, 1, '$d/run001', nil) print(r.error)" | $G 2>&1 | tail -n 1)
+echo "$got" | grep -q "^no exit status" && pass "no status, empty log: said so" || fail "no status, empty log" "$got"
