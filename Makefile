@@ -2,7 +2,7 @@
 # and `make demo` first install missing Debian packages (as root).
 PKGS      := lua5.4 yaml-0.1 readline libpng libmicrohttpd
 DEB_PKGS  := gcc make pkg-config liblua5.4-dev lua5.4 libyaml-dev libreadline-dev libpng-dev \
-             libmicrohttpd-dev chromium curl clang libclang-rt-14-dev
+             libmicrohttpd-dev chromium curl clang libclang-rt-14-dev slurm-wlm munge
 CC        ?= cc
 CSTD      := -std=c11 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE
 WARN      := -Wall -Wextra

@@ -69,6 +69,7 @@ int gr_open_distance(lua_State *L); /* gradus.distance.* */
 int gr_open_slice(lua_State *L);    /* gradus.slice.*, rings methods */
 int gr_open_hatch(lua_State *L);    /* gradus.hatch.*, layer methods, verify */
 int gr_open_io(lua_State *L);       /* gradus.cli.*, gradus.svg.*, gradus.png.* */
+int gr_open_clicat(lua_State *L);   /* gradus.cli.cat (after gr_open_io) */
 int gr_open_yaml(lua_State *L);     /* gradus.yaml.* */
 int gr_open_fs(lua_State *L);       /* gradus.fs.* (bind_fs.c) */
 /* Where a C writer must write the output `path`: the job's output

@@ -49,6 +49,7 @@ int luaopen_gradus(lua_State *L) {
   gr_open_slice(L);
   gr_open_hatch(L);
   gr_open_io(L);
+  gr_open_clicat(L);
   gr_open_yaml(L);
   gr_open_fs(L);
   gr_open_place(L);

@@ -222,18 +222,21 @@ double gr_job_angle(const gr_job *j, int g) { return gr_layer_angle(&j->o, g); }
 
 int gr_job_classify(gr_job *j, int direct, gr_err *e) { return gr_classify_run(j, direct, e); }
 
-/* Every class's template once (from the knowledge base when there), then
- * the layers ga..gb. */
+/* Every class used by a row in [ga, gb] once (from the knowledge base when
+ * there; a class may recur in rows its representative is not in), then the
+ * layers ga..gb. */
 static int run_templates(gr_job *j, gr_build *ba, int ga, int gb, const gr_job_run_opts *r, long *done, long total,
                          gr_err *e) {
   double t1 = gr_now();
   int n = 0;
-  for (int c = 0; c < j->ncls; c++) {
-    int i, jj, k;
-    gr_grid_ijk(&j->grid, j->cls[c].rep, &i, &jj, &k);
+  for (int c = 0; c < j->ncls; c++) ba->items[c] = 0;
+  for (int k = 0; k < j->grid.n[2]; k++) {
     int g0 = gr_grid_row_first(&j->grid, k), g1 = g0 + gr_grid_row_layers(&j->grid, k) - 1;
-    if (g1 >= ga && g0 <= gb) ba->items[n++] = c;
+    if (g1 < ga || g0 > gb) continue;
+    for (int q = 0; q < j->rowcount[k]; q++) ba->items[j->vcls[j->roworder[(size_t)k * j->rowlen + q]]] = 1;
   }
+  for (int c = 0; c < j->ncls; c++)
+    if (ba->items[c]) ba->items[n++] = c;
   ba->nitems = n;
   int rc = gr_build_classes(ba, r, "templates", e);
   j->st.seconds[1] = gr_now() - t1;

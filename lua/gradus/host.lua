@@ -8,8 +8,11 @@ usage: gradus run RECIPE [-D name=value]... [-o OUTPUT] [--stats FILE] [-q] [--a
                    [--sandbox] [--limits memory=MiB,instructions=N,seconds=S]
        gradus run RECIPE --help    the recipe's parameters: defaults, units, ranges
        gradus sweep RECIPE -D name=v1,v2,... -D other=a:b:step [-j N] [-o DIR]
+       gradus run RECIPE ... -o FILE --slurm N   N layer ranges as a Slurm array (doc/cluster.md)
+       gradus sweep ... --slurm [--partition P] [--time T] [--mem M] [--max-tasks N]
        gradus cli info FILE        layers, bounds, counts and lengths of a CLI file
        gradus view FILE [-o HTML]  the layers in a browser page (--serve [--port N]: over HTTP)
+       gradus cli cat PART.cli... -o FILE [--stats FILE]   merge layer-range parts
        gradus kb list|show KEY|verify|prune [--dir DIR]
        gradus                      interactive Lua prompt with gradus loaded
        gradus --version | help
@@ -181,6 +184,9 @@ function M.parse_args(args, first)
 end
 
 local function cmd_run(args)
+  for _, a in ipairs(args) do
+    if a == "--slurm" then return require("gradus.slurm").run_cmd(args) end -- doc/cluster.md
+  end
   local ok, o = pcall(M.parse_args, args, 2)
   if not ok then eprint("gradus: " .. o) eprint(USAGE) return 2 end
   local recipe = o.rest[1]
