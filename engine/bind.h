@@ -71,5 +71,7 @@ int gr_open_hatch(lua_State *L);    /* gradus.hatch.*, layer methods, verify */
 int gr_open_io(lua_State *L);       /* gradus.cli.*, gradus.svg.*, gradus.png.* */
 int gr_open_yaml(lua_State *L);     /* gradus.yaml.* */
 int gr_open_place(lua_State *L);    /* gradus.place.*, gradus.kb.* */
+int gr_open_density(lua_State *L);  /* gradus.density.*, gradus.field.file */
+struct gr_dtable *gr_test_dtable(lua_State *L, int idx); /* a density table or NULL */
 
 #endif

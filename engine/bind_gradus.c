@@ -51,6 +51,7 @@ int luaopen_gradus(lua_State *L) {
   gr_open_io(L);
   gr_open_yaml(L);
   gr_open_place(L);
+  gr_open_density(L);
   lua_pushstring(L, GRADUS_VERSION);
   lua_setfield(L, -2, "version");
   char root[PATH_MAX];

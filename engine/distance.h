@@ -10,6 +10,7 @@
 #define GR_DISTANCE_H
 #include "field.h"
 #include "mesh.h"
+#include "density.h"
 
 typedef struct gr_bvh gr_bvh;
 /* Build over m (which must outlive the BVH). Empty meshes and NaN vertices
@@ -50,6 +51,9 @@ typedef struct gr_offset_opts {
                                  surface (a reference is taken), translated by like_shift
                                  (a lattice vector, mm); its box must cover this one's */
   double like_shift[3];
+  gr_dtable *density;         /* or NULL; else the thickness values above are relative
+                                 densities, turned into T by this table (a reference is
+                                 taken; the inside pass gets ratio * T) */
 } gr_offset_opts;
 gr_offset_opts gr_offset_defaults(void);
 

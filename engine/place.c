@@ -418,7 +418,7 @@ static char *voxel_signature(gr_job *j, int v, gr_err *e) {
         w[n] = 2 * fc - 1;
       }
   const double *vars[6] = {x, y, z, u, vv, w};
-  if (gr_expr_eval(j->texpr[j->vspec[v]], N, vars, t, e)) return NULL;
+  if (s->target ? gr_field_eval(s->target, N, x, y, z, t, e) : gr_expr_eval(j->texpr[j->vspec[v]], N, vars, t, e)) return NULL;
   if (j->iexpr[j->vspec[v]] && gr_expr_eval(j->iexpr[j->vspec[v]], N, vars, ti, e)) return NULL;
   size_t cap = 2048 + N * 24 * 2;
   char *sig = malloc(cap);
@@ -437,6 +437,9 @@ static char *voxel_signature(gr_job *j, int v, gr_err *e) {
   for (int q = 0; q < N; q++)
     len += (size_t)snprintf(sig + len, cap - len, "%s%lld", q ? "," : "", (long long)llround(t[q] / j->o.quant));
   len += (size_t)snprintf(sig + len, cap - len, "]");
+  if (s->density || s->target) /* density samples: name the table; a field: its source */
+    len += (size_t)snprintf(sig + len, cap - len, ", density: \"%s\", target: \"%s\"", s->density ? gr_dtable_key(s->density) : "",
+                            s->target ? gr_field_describe(s->target) : "");
   if (j->iexpr[j->vspec[v]]) {
     len += (size_t)snprintf(sig + len, cap - len, ", Tin: [");
     for (int q = 0; q < N; q++)
@@ -556,6 +559,8 @@ static gr_field *voxel_field(gr_job *j, int v, int trimmed, gr_field *like, cons
   oo.res = j->o.res;
   oo.thickness_expr = j->specs[j->vspec[v]].thickness;
   oo.inside_expr = s->inside[0] ? s->inside : NULL;
+  oo.density = s->density;
+  if (s->target) oo.thickness_expr = NULL, oo.thickness_field = s->target;
   oo.kind = s->network ? GR_OFFSET_NETWORK : GR_OFFSET_SHEET;
   oo.side = s->side;
   oo.mode = j->o.exact ? GR_DIST_EXACT : GR_DIST_MESH;

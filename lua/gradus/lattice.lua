@@ -72,6 +72,9 @@ function M.params()
     skin = P("skin", 0.0),
     faces = P("faces", true),
     qualify = P("qualify", false),
+    -- design by density (gradus.density): a target instead of thickness
+    density = P("density", ""), porosity = P("porosity", ""), density_origin = P("density_origin", "0,0,0"),
+    density_spacing = P("density_spacing", ""), clamp = P("clamp", false), track = P("track", -1.0),
   }
   return p
 end
@@ -147,11 +150,12 @@ function M.run(p, out)
   }
   job:machine(machine)
   local specs = {}
+  local dens = require("gradus.density").prepare(p, origin, cells, out)
   local function spec_of(surface, thickness, inside)
     local key = surface .. "|" .. thickness .. "|" .. (inside or "")
     if not specs[key] then
-      specs[key] = job:spec { surface = surface, level = p.level, kind = p.kind, thickness = thickness,
-        inside = inside ~= "" and inside or nil }
+      specs[key] = job:spec(dens and dens:spec(surface) or { surface = surface, level = p.level, kind = p.kind,
+        thickness = thickness, inside = inside ~= "" and inside or nil })
     end
     return specs[key]
   end
@@ -196,6 +200,12 @@ function M.run(p, out)
     end
   end
   if domain then job:domain(domain, { skin = p.skin or 0 }) end
+  if dens then
+    dens:check(function(i, j, k)
+      local r = p.rule and p.rule(i, j, k, origin[1] + i * L, origin[2] + j * L, origin[3] + k * L) or {}
+      return not r.skip and (r.surface or p.surface) or nil
+    end)
+  end
   local first, last = parse_range(p.layers, job:layers())
   local keep = {}
   for item in tostring(p.pictures):gmatch("[^,]+") do keep[#keep + 1] = tonumber(item) end
@@ -274,6 +284,9 @@ function M.run(p, out)
       end
     end
     st.quality = q
+  end
+  if dens and out then
+    st.density = dens:measure(out, domain, p.beam_offset >= 0 and p.beam_offset or p.hatch / 2, p.layer)
   end
   st.parameters = {}
   for k, v in pairs(p) do
