@@ -159,6 +159,9 @@ function M.prepare(p, origin, cells, out)
   local src = M.source { density = p.density, porosity = p.porosity, origin = p.density_origin,
     spacing = p.density_spacing, pad = p.cell }
   if not src then return nil end
+  if gradus._ctx.params.thickness ~= nil then
+    error(("give thickness or %s, not both"):format(src.what), 3)
+  end
   local L = p.cell
   local track = (p.track and p.track > 0) and p.track or p.hatch
   local hi = { origin[1] + cells[1] * L, origin[2] + cells[2] * L, origin[3] + cells[3] * L }
