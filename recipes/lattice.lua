@@ -4,7 +4,8 @@
 -- thickness, layer, hatch, beam_offset, angle, rotation, pattern, contours,
 -- lasers, kb, format; and machine, assign, sequence, mode, res, layers,
 -- pictures (comma-separated layer numbers to draw), split, threads; domain
--- (an STL file of the part, or an expression) and skin (mm).
+-- (an STL file of the part, or an expression) and skin (mm); density or porosity
+-- (a target instead of thickness, doc/density.md).
 local lattice = require "gradus.lattice"
 local p = lattice.params()
 local out = gradus.output("out/lattice.cli")

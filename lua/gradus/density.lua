@@ -200,7 +200,7 @@ function M.prepare(p, origin, cells, out)
             local t, sum, clamped = self:table(surface), 0, false
             local rlo, rhi = t:range()
             for q = 1, #v do
-              if not p.clamp then t:check(v[q], xs[q], ys[q], zs[q], src.what) end
+              if not p.clamp or v[q] ~= v[q] then t:check(v[q], xs[q], ys[q], zs[q], src.what) end
               if v[q] < rlo or v[q] > rhi then clamped = true end
               sum = sum + math.min(math.max(v[q], rlo), rhi)
             end

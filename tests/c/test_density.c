@@ -94,6 +94,30 @@ TEST(refusal_names_the_range) {
   gr_dtable_free(t);
 }
 
+/* Asymmetric gyroid sheet (inside r T, outside T): the gyroid's two sides
+ * are congruent (phi -> -phi under a half-cell shift), so its density is the
+ * mean of the symmetric sheets of half-thickness T and r T. */
+TEST(asymmetric_sheet) {
+  gr_dtable_opts o = gr_dtable_defaults();
+  o.surface = "gyroid";
+  o.res = 32;
+  o.track = 0.05;
+  gr_err e;
+  gr_dtable *s = gr_dtable_new(&o, &e);
+  o.ratio = 0.5;
+  gr_dtable *a = gr_dtable_new(&o, &e);
+  CHECK(s && a, "%s", e.msg);
+  if (s && a) {
+    for (double T = 0.05; T < 0.4; T += 0.05)
+      CHECK_NEAR(gr_dtable_rho(a, T), 0.5 * (gr_dtable_rho(s, T) + gr_dtable_rho(s, 0.5 * T)), 2e-4);
+    double lo, hi, tlo, thi;
+    gr_dtable_range(a, &lo, &hi, &tlo, &thi);
+    CHECK_NEAR(tlo, 0.05 / 1.5, 1e-12); /* wall (1 + r) T = one track */
+  }
+  gr_dtable_free(s);
+  gr_dtable_free(a);
+}
+
 TEST(ring_area_in_box) {
   double sq[] = {0, 0, 4, 0, 4, 4, 0, 4, 0, 0}; /* CCW 4x4, first point repeated */
   double lo[2] = {1, 1}, hi[2] = {3, 2}, lo2[2] = {3, 3}, hi2[2] = {6, 6};
@@ -231,6 +255,7 @@ int main(void) {
   RUN(thin_sheets_match_surface_area);
   RUN(monotone_symmetric_round_trip);
   RUN(refusal_names_the_range);
+  RUN(asymmetric_sheet);
   RUN(ring_area_in_box);
   RUN(field_files_read_back);
   RUN(bad_field_files);
