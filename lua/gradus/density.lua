@@ -151,14 +151,27 @@ local function function_field(fn, lo, hi, L, path)
   return gradus.field.file(path, { origin = org, spacing = { h, h, h } })
 end
 
+-- A thickness given by a field file: specs only (no table, nothing to check).
+local function thickness_file(p)
+  local ok, f = pcall(M.file, p.thickness, { origin = p.density_origin, spacing = p.density_spacing, pad = p.cell })
+  if not ok then error(("bad thickness '%s': %s"):format(p.thickness, tostring(f)), 4) end
+  return {
+    spec = function(_, surface)
+      return { surface = surface, level = p.level, kind = p.kind, thickness = "0", target = f }
+    end,
+    check = function() end,
+  }
+end
+
 --- M.prepare(p, origin, cells, out): the density design of a lattice run
--- (p: lattice parameters with density or porosity), or nil when p has none.
--- Returns an object d with d:spec(surface) -> job:spec options, d:check(skip)
--- (targets reachable in every voxel; counts clamps), d:measure(cli, domain).
+-- (p: lattice parameters with density or porosity, or a thickness given as a
+-- .vtk/.npy file), or nil when p has none. Returns an object d with
+-- d:spec(surface) -> job:spec options, d:check(surface_of) (targets reachable
+-- in every voxel; counts clamps; sets d.target), d:measure(cli, domain, b, t).
 function M.prepare(p, origin, cells, out)
   local src = M.source { density = p.density, porosity = p.porosity, origin = p.density_origin,
     spacing = p.density_spacing, pad = p.cell }
-  if not src then return nil end
+  if not src then return is_file(p.thickness) and thickness_file(p) or nil end
   if gradus._ctx.params.thickness ~= nil then
     error(("give thickness or %s, not both"):format(src.what), 3)
   end

@@ -285,7 +285,7 @@ function M.run(p, out)
     end
     st.quality = q
   end
-  if dens and out then
+  if dens and dens.target and out then
     st.density = dens:measure(out, domain, p.beam_offset >= 0 and p.beam_offset or p.hatch / 2, p.layer)
   end
   st.parameters = {}

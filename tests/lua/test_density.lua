@@ -43,6 +43,15 @@ t.test("porosity from a VTK field file", function()
   t.near(st.density.voxels[1].achieved, 0.7, 0.003, "achieved porosity")
 end)
 
+t.test("thickness from a VTK field file equals the same thickness as an expression", function()
+  vtk(tmp .. "/t.vtk", 0.1)
+  local a = lattice.run(params { thickness = tmp .. "/t.vtk", layer = 0.1, kb = "off" }, tmp .. "/t1.cli")
+  local b = lattice.run(params { thickness = "0.1", layer = 0.1, kb = "off" }, tmp .. "/t2.cli")
+  t.ok(a.solid_volume_mm3 > 0, "solid")
+  t.near(a.solid_volume_mm3, b.solid_volume_mm3, 1e-6, "same solid (to rounding of the interpolation)")
+  t.ok(not a.density, "no density stats")
+end)
+
 t.test("infeasible targets: refused with the reachable range, or clamped and counted", function()
   t.raises(function() lattice.run(params { density = "0.01" }, tmp .. "/bad.cli") end,
     "density 0.01 at x=[%d.]+ y=[%d.]+ z=[%d.]+: gyroid sheet, L=2 mm, reachable 0%.0%d+%.%.0%.9%d+ with a 0%.05 mm track")
