@@ -270,8 +270,10 @@ int gr_dtable_check(const gr_dtable *t, double rho, const double p[3], const cha
   if (!(t->rlo <= t->rhi))
     return gr_fail(e, GR_EARG, "%s %.4g at x=%.4g y=%.4g z=%.4g: %s %s, L=%g mm, nothing reachable with a %g mm track (walls or pores thinner than one track)",
                    por ? "porosity" : "density", por ? 1 - rho : rho, p[0], p[1], p[2], t->surface, kind, t->L, t->track);
-  double a = por ? 1 - t->rhi : t->rlo, b = por ? 1 - t->rlo : t->rhi;
-  return gr_fail(e, GR_EARG, "%s %.4g at x=%.4g y=%.4g z=%.4g: %s %s, L=%g mm, reachable %.4g..%.4g with a %g mm track",
+  /* the range rounded inwards to 4 decimals, the value to 6 digits: a refused
+   * value never prints inside the printed range */
+  double a = ceil((por ? 1 - t->rhi : t->rlo) * 1e4) / 1e4, b = floor((por ? 1 - t->rlo : t->rhi) * 1e4) / 1e4;
+  return gr_fail(e, GR_EARG, "%s %.6g at x=%.4g y=%.4g z=%.4g: %s %s, L=%g mm, reachable %.4f..%.4f with a %g mm track",
                  por ? "porosity" : "density", por ? 1 - rho : rho, p[0], p[1], p[2], t->surface, kind, t->L, a, b, t->track);
 }
 
