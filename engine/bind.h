@@ -82,5 +82,7 @@ const char *gr_lua_stage(lua_State *L, const char *path);
 void gr_lua_guard(lua_State *L, const char *path, const char *mode);
 int gr_open_place(lua_State *L);    /* gradus.place.*, gradus.kb.* */
 int gr_open_view(lua_State *L);     /* gradus.view.* (bind_view.c) */
+int gr_open_density(lua_State *L);  /* gradus.density.*, gradus.field.file */
+struct gr_dtable *gr_test_dtable(lua_State *L, int idx); /* a density table or NULL */
 
 #endif

@@ -49,6 +49,9 @@ static int l_offset(lua_State *L) {
     return luaL_error(L, "bad option 'thickness' (number, expression in x,y,z,u,v,w,L, or function of x,y,z expected, got %s)", luaL_typename(L, -1));
   }
   lua_pop(L, 1);
+  lua_getfield(L, 1, "density_table"); /* thickness values are densities (gradus.density) */
+  o.density = gr_test_dtable(L, -1);
+  lua_pop(L, 1);
   o.inside_expr = gr_opt_string(L, 1, "inside", NULL);
   const char *kind = gr_opt_string(L, 1, "kind", "sheet");
   if (strcmp(kind, "sheet") && strcmp(kind, "network")) {

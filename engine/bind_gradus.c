@@ -54,6 +54,7 @@ int luaopen_gradus(lua_State *L) {
   gr_open_fs(L);
   gr_open_place(L);
   gr_open_view(L);
+  gr_open_density(L);
   lua_pushstring(L, GRADUS_VERSION);
   lua_setfield(L, -2, "version");
   char root[PATH_MAX];

@@ -115,7 +115,28 @@ static int l_job(lua_State *L) {
   return 1;
 }
 
-/* job:spec{surface=, level=, kind=, side=, thickness=, inside=} -> index (1-based) */
+/* spec options density_table= (thickness values are densities) and target= (a
+ * field used instead of the thickness expression): both stay referenced from
+ * the job's user value while the job lives. */
+static void keep_density(lua_State *L, gr_spec *s) {
+  lua_getfield(L, 2, "density_table");
+  s->density = gr_test_dtable(L, -1);
+  lua_getfield(L, 2, "target");
+  s->target = lua_isnil(L, -1) ? NULL : gr_check_field(L, -1);
+  if (lua_getiuservalue(L, 1, 1) != LUA_TTABLE) {
+    lua_pop(L, 1);
+    lua_newtable(L);
+    lua_pushvalue(L, -1);
+    lua_setiuservalue(L, 1, 1);
+  }
+  for (int k = -3; k <= -2; k++) {
+    lua_pushvalue(L, k);
+    lua_rawseti(L, -2, (lua_Integer)lua_rawlen(L, -2) + 1);
+  }
+  lua_pop(L, 3);
+}
+
+/* job:spec{surface=, level=, kind=, side=, thickness=, inside=, density_table=, target=} -> index (1-based) */
 static int l_spec(lua_State *L) {
   gr_job *j = check_job(L, 1);
   luaL_checktype(L, 2, LUA_TTABLE);
@@ -147,6 +168,7 @@ static int l_spec(lua_State *L) {
   const char *in = gr_opt_string(L, 2, "inside", "");
   if (strlen(in) >= sizeof s.inside) return luaL_error(L, "bad option 'inside' (expression too long)");
   strcpy(s.inside, in);
+  keep_density(L, &s);
   gr_err e;
   gr_err_clear(&e);
   int idx = gr_job_add_spec(j, &s, &e);

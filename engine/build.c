@@ -51,6 +51,8 @@ static gr_field *voxel_field(gr_job *j, int v, int trimmed, gr_field *like, cons
   oo.res = j->o.res;
   oo.thickness_expr = j->specs[j->vspec[v]].thickness;
   oo.inside_expr = s->inside[0] ? s->inside : NULL;
+  oo.density = s->density;
+  if (s->target) oo.thickness_expr = NULL, oo.thickness_field = s->target;
   oo.kind = s->network ? GR_OFFSET_NETWORK : GR_OFFSET_SHEET;
   oo.side = s->side;
   oo.mode = j->o.exact ? GR_DIST_EXACT : GR_DIST_MESH;

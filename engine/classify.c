@@ -1,5 +1,6 @@
 /* classify.c: voxel classes and signatures, see classify.h. */
 #include "classify.h"
+#include "density.h"
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -86,7 +87,7 @@ static char *voxel_signature(gr_job *j, int v, gr_err *e) {
         w[n] = 2 * fc - 1;
       }
   const double *vars[6] = {x, y, z, u, vv, w};
-  if (gr_expr_eval(j->texpr[j->vspec[v]], N, vars, t, e)) return NULL;
+  if (s->target ? gr_field_eval(s->target, N, x, y, z, t, e) : gr_expr_eval(j->texpr[j->vspec[v]], N, vars, t, e)) return NULL;
   if (j->iexpr[j->vspec[v]] && gr_expr_eval(j->iexpr[j->vspec[v]], N, vars, ti, e)) return NULL;
   size_t cap = 2048 + N * 24 * 2;
   char *sig = malloc(cap);
@@ -105,6 +106,9 @@ static char *voxel_signature(gr_job *j, int v, gr_err *e) {
   for (int q = 0; q < N; q++)
     len += (size_t)snprintf(sig + len, cap - len, "%s%lld", q ? "," : "", (long long)llround(t[q] / j->o.quant));
   len += (size_t)snprintf(sig + len, cap - len, "]");
+  if (s->density || s->target) /* density samples: name the table; a field: its source */
+    len += (size_t)snprintf(sig + len, cap - len, ", density: \"%s\", target: \"%s\"", s->density ? gr_dtable_key(s->density) : "",
+                            s->target ? gr_field_describe(s->target) : "");
   if (j->iexpr[j->vspec[v]]) {
     len += (size_t)snprintf(sig + len, cap - len, ", Tin: [");
     for (int q = 0; q < N; q++)

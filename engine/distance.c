@@ -33,6 +33,7 @@ typedef struct offset {
   double tmax;        /* max T over H's vertices */
   double herr;        /* bound on the distance between H's mesh and phi = 0 */
   gr_field *like;     /* the offset field whose H and BVH are shared, or NULL */
+  gr_dtable *dens;    /* density -> T table, or NULL */
   double shift[3];    /* H = the shared mesh translated by this, mm */
   double lip;         /* Lipschitz bound of phi */
   int kind, side, mode;
@@ -54,11 +55,12 @@ static void offset_free(void *ud) {
   gr_expr_free(f->t);
   gr_expr_free(f->tin);
   gr_field_free(f->tfield);
+  gr_dtable_free(f->dens);
   free(f);
 }
 
-/* T at n points q (global, mm). */
-static int thick(const offset *f, const gr_expr *x, size_t n, const double *qx, const double *qy,
+/* T at n points q (global, mm), before any density table. */
+static int thick_value(const offset *f, const gr_expr *x, size_t n, const double *qx, const double *qy,
                  const double *qz, double *out, gr_err *e) {
   if (!x && f->tfield) return gr_field_eval(f->tfield, n, qx, qy, qz, out, e);
   if (!x) {
@@ -81,6 +83,16 @@ static int thick(const offset *f, const gr_expr *x, size_t n, const double *qx, 
     int rc = gr_expr_eval(x, m, vars, out + s, e);
     if (rc) return rc;
   }
+  return GR_OK;
+}
+
+/* T at n points q: thick_value, then the density table when there is one. */
+static int thick(const offset *f, const gr_expr *x, size_t n, const double *qx, const double *qy,
+                 const double *qz, double *out, gr_err *e) {
+  int rc = thick_value(f, x, n, qx, qy, qz, out, e);
+  if (rc || !f->dens) return rc;
+  gr_dtable_apply(f->dens, n, out);
+  if (x && x == f->tin) for (size_t i = 0; i < n; i++) out[i] *= gr_dtable_ratio(f->dens);
   return GR_OK;
 }
 
@@ -457,7 +469,7 @@ static int offset_compile(offset *f, const gr_offset_opts *o, gr_err *e) {
     snprintf(m, sizeof m, "%s", e->msg);
     return gr_fail(e, GR_EARG, "bad option 'inside' (%s)", m);
   }
-  if (!o->thickness_expr && !f->tfield && !(o->thickness >= 0 && o->thickness <= o->cell / 2))
+  if (!o->thickness_expr && !f->tfield && !f->dens && !(o->thickness >= 0 && o->thickness <= o->cell / 2))
     return gr_fail(e, GR_EARG, "bad option 'thickness' (must be in [0, L/2 = %g], got %g)", o->cell / 2, o->thickness);
   return GR_OK;
 }
@@ -612,6 +624,7 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   f->tconst = o->thickness;
   f->tfield = (!o->thickness_expr && o->thickness_field) ? gr_field_ref(o->thickness_field) : NULL;
   f->lip = gr_field_lipschitz(o->surface);
+  f->dens = gr_dtable_ref(o->density);
   if (offset_compile(f, o, e)) { offset_free(f); return NULL; }
   /* H over the box grown by a reach: margin + the largest thickness (from
    * samples over the grown box) + two mesh spacings */

@@ -11,6 +11,7 @@
 #include "field.h"
 #include "bvh.h"
 #include "mesh.h"
+#include "density.h"
 
 enum { GR_OFFSET_SHEET = 0, GR_OFFSET_NETWORK = 1 };
 enum { GR_DIST_MESH = 0, GR_DIST_EXACT = 1 };
@@ -35,6 +36,9 @@ typedef struct gr_offset_opts {
                                  surface (a reference is taken), translated by like_shift
                                  (a lattice vector, mm); its box must cover this one's */
   double like_shift[3];
+  gr_dtable *density;         /* or NULL; else the thickness values above are relative
+                                 densities, turned into T by this table (a reference is
+                                 taken; the inside pass gets ratio * T) */
 } gr_offset_opts;
 gr_offset_opts gr_offset_defaults(void);
 

@@ -61,6 +61,9 @@ typedef struct gr_spec {
   int side;             /* network side: -1 (phi < c, default) or +1 */
   char thickness[512];  /* half-thickness T: expression in x,y,z,u,v,w,L (mm) */
   char inside[512];     /* optional inside thickness (asymmetric sheet), "" = T */
+  struct gr_dtable *density; /* or NULL: thickness values are densities (density.h) */
+  gr_field *target;     /* or NULL: a field of x,y,z used instead of the expression
+                           (both owned by the caller, alive while the job is) */
 } gr_spec;
 
 /* Process and strategy parameters of a job (the signature includes those

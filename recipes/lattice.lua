@@ -5,7 +5,8 @@
 -- origin, level, kind, thickness, layer, hatch, beam_offset, angle, rotation,
 -- pattern, contours, lasers, kb, format; and machine, assign, sequence, mode,
 -- res, layers, pictures, split, threads; domain (an STL file of the part, or
--- an expression) and skin (mm).
+-- an expression) and skin (mm); density or porosity (a target instead of
+-- thickness, doc/density.md).
 local lattice = require "gradus.lattice"
 local p = lattice.params()
 local out = gradus.output("out/lattice.cli")

@@ -13,7 +13,7 @@ local sections -- name -> text
 local FILES = {
   ["field.md"] = { "field.", "field" }, ["mesh.md"] = { "mesh.", "mesh" },
   ["hatch.md"] = { "hatch.", "layer" }, ["distance.md"] = { "distance.", "rings" },
-  ["place.md"] = { "place.", "job" }, ["host.md"] = { "", nil },
+  ["place.md"] = { "place.", "job" }, ["host.md"] = { "", nil }, ["density.md"] = { "", nil },
 }
 
 local function load_sections()

@@ -61,6 +61,15 @@ M.PARAMS = {
   { "skin", 0.0, { unit = "mm", min = 0, max = 10, help = "solid skin depth along the domain's boundary" } },
   { "faces", true, { help = "contour the lattice where the box of cells cuts it" } },
   { "qualify", false, { allow = FN, help = "verify every template built and qualify it (or a Lua rule)" } },
+  -- design by density (gradus.density, doc/density.md): a target instead of thickness
+  { "density", "", { kind = "expr", empty = true, min = 1e-6, max = 1, allow = FN,
+    help = "relative density target in (0, 1): a number, an expression, a Lua function or a .vtk/.npy field file" } },
+  { "porosity", "", { kind = "expr", empty = true, min = 0, max = 1, allow = FN,
+    help = "porosity target (1 - density), same forms as density" } },
+  { "density_origin", "0,0,0", { n = 3, unit = "mm", min = -1000, max = 1000, help = "origin of a .npy field file's grid" } },
+  { "density_spacing", "", { help = "grid spacing of a .npy field file: d or dx,dy,dz (mm)" } },
+  { "clamp", false, { help = "clamp density targets outside the reachable range (counted) instead of refusing them" } },
+  { "track", "auto", { auto = "hatch", unit = "mm", min = 0.005, max = 2, help = "melt-track width: the thinnest wall or pore a density target may ask for" } },
 }
 -- fields of the parameter table that are not -D parameters
 M.FIELDS = { rule = "p.rule(i, j, k, x, y, z) -> {surface=, thickness=, laser=, seq=, skip=} per voxel" }
@@ -190,11 +199,12 @@ local function run(p, out)
   }
   job:machine(machine)
   local specs = {}
+  local dens = require("gradus.density").prepare(p, origin, cells, out)
   local function spec_of(surface, thickness, inside)
     local key = surface .. "|" .. thickness .. "|" .. (inside or "")
     if not specs[key] then
-      specs[key] = job:spec { surface = surface, level = p.level, kind = p.kind, thickness = thickness,
-        inside = inside ~= "" and inside or nil }
+      specs[key] = job:spec(dens and dens:spec(surface) or { surface = surface, level = p.level, kind = p.kind,
+        thickness = thickness, inside = inside ~= "" and inside or nil })
     end
     return specs[key]
   end
@@ -237,6 +247,12 @@ local function run(p, out)
     end
   end
   if domain then job:domain(domain, { skin = p.skin or 0 }) end
+  if dens then
+    dens:check(function(i, j, k)
+      local r = p.rule and p.rule(i, j, k, origin[1] + i * L, origin[2] + j * L, origin[3] + k * L) or {}
+      return not r.skip and (r.surface or p.surface) or nil
+    end)
+  end
   local first, last = parse_range(p.layers, job:layers())
   local keep = {}
   for item in tostring(p.pictures):gmatch("[^,]+") do keep[#keep + 1] = tonumber(item) end
@@ -315,6 +331,9 @@ local function run(p, out)
       end
     end
     st.quality = q
+  end
+  if dens and dens.target and out then
+    st.density = dens:measure(gradus.outputs.stage(out), domain, p.beam_offset ~= "auto" and p.beam_offset or p.hatch / 2, p.layer)
   end
   st.parameters = {}
   for k, v in pairs(p) do
