@@ -8,11 +8,7 @@
 -- recipe's own defaults.
 local lattice = require "gradus.lattice"
 local density = require "gradus.density"
-local p = lattice.params()
-local own = { surface = "gyroid", cell = 2.0, cells = "6,6,2", layer = 0.04, thickness = "" }
-for k, v in pairs(own) do
-  if gradus._ctx.params[k] == nil then p[k] = v end
-end
+local p = lattice.params { surface = "gyroid", cell = 2.0, cells = "6,6,2", layer = 0.04 }
 local R = gradus.param("radius", 6.0)     -- cylinder radius, mm
 local core = gradus.param("core", 0.6)    -- porosity on the axis
 local rim = gradus.param("rim", 0.8)      -- porosity at radius R

@@ -11,7 +11,7 @@ gradus.mkdir(tmp)
 
 local function params(o)
   local p = lattice.params()
-  p.surface, p.cells, p.kb, p.layer, p.beam_offset, p.hatch, p.thickness = "gyroid", "1,1,1", tmp .. "/kb", 0.04, 0, 0.05, ""
+  p.surface, p.cells, p.kb, p.layer, p.beam_offset, p.hatch = "gyroid", "1,1,1", tmp .. "/kb", 0.04, 0, 0.05
   for k, v in pairs(o) do p[k] = v end
   return p
 end
