@@ -13,13 +13,14 @@ local list = function(s)
   for item in tostring(s):gmatch("[^,]+") do t[#t + 1] = item end
   return t
 end
-local surfaces = list(gradus.param("surfaces", table.concat(gradus.field.surfaces(), ",")))
-local kinds = list(gradus.param("kinds", "sheet,network"))
+local surfaces = gradus.param("surfaces", "all", { help = "surfaces to measure, comma-separated (all: the whole catalogue)" })
+local kinds = list(gradus.param("kinds", "sheet,network", { help = "sheet, network or both" }))
 local fractions = list(gradus.param("fractions", "0.05,0.5,0.95"))
 local graded = gradus.param("graded", true)
 local out = gradus.output("out/density_accuracy.md")
 local dir = out:gsub("%.md$", "")
 local base = lattice.params()
+surfaces = list(surfaces == "all" and table.concat(gradus.field.surfaces(), ",") or surfaces)
 local function run(over, name)
   local p = {}
   for k, v in pairs(base) do p[k] = v end

@@ -342,6 +342,7 @@ local function run(p, out)
   -- the values the job used, not "auto" or "" (default cache, default machine)
   st.parameters.beam_offset = st.effective.beam_offset
   st.parameters.slice_cell = st.effective.slice_cell
+  if p.track == "auto" then st.parameters.track = p.hatch end
   if kb == nil then st.parameters.kb = gradus.kb.default_dir() end
   if p.machine == "" then st.parameters.machine = machine.name end
   st.parameters.layers = ("%d:%d"):format(first, last)

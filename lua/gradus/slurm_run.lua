@@ -103,6 +103,14 @@ end
 
 local function strip_cli(path) return (path:gsub("%.cli$", "")) end
 
+-- a parameter's value as text: vectors (tables) as "a,b,c"
+local function show(v)
+  if type(v) ~= "table" then return tostring(v) end
+  local t = {}
+  for i, x in ipairs(v) do t[i] = show(x) end
+  return table.concat(t, ",")
+end
+
 --- M.same_job(parts): raise when the parts' stats (PART.yaml, where there)
 -- record different parameters (other than layers): the CLI header alone
 -- does not tell a hatch spacing or a thickness apart.
@@ -119,9 +127,9 @@ function M.same_job(parts)
       for k in pairs(first) do keys[k] = true end
       for k in pairs(par) do keys[k] = true end
       for k in pairs(keys) do
-        if k ~= "layers" and tostring(first[k]) ~= tostring(par[k]) then
+        if k ~= "layers" and show(first[k]) ~= show(par[k]) then
           error(("%s and %s are not parts of one job: parameter %s is %s in one and %s in the other (their stats)")
-            :format(fpath, p, k, tostring(first[k]), tostring(par[k])), 0)
+            :format(fpath, p, k, show(first[k]), show(par[k])), 0)
         end
       end
     end

@@ -77,6 +77,6 @@ expect "Ctrl-C lists the temporaries removed" "stopped by Ctrl-C; no output was 
 for exe in $G build/gradus-asan; do
   [ -x "$exe" ] || continue
   out=$($exe run $R -D cells=1,1,1 -D hatch=0.000000001 -q -o "$d/h.cli" 2>&1); rc=$?
-  expect "hatch=1e-9 refused ($(basename "$exe"))" "slice grid too large" "$out"
+  expect "hatch=1e-9 refused ($(basename "$exe"))" "slice grid too large|parameter .hatch. must be a number in" "$out"
   [ $rc = 1 ] && pass "hatch=1e-9 exit 1 ($(basename "$exe"))" || fail "hatch=1e-9 exit" "rc=$rc"
 done
