@@ -1,24 +1,27 @@
 # Gradus build. `make` builds build/gradus and build/gradus.so; `make test`
 # and `make demo` first install missing Debian packages (as root).
-PKGS      := lua5.4 yaml-0.1 readline libpng
-DEB_PKGS  := gcc make pkg-config liblua5.4-dev lua5.4 libyaml-dev libreadline-dev libpng-dev
+PKGS      := lua5.4 yaml-0.1 readline libpng libprotobuf-c nettle
+DEB_PKGS  := gcc make pkg-config liblua5.4-dev lua5.4 libyaml-dev libreadline-dev libpng-dev \
+             protobuf-c-compiler libprotobuf-c-dev protobuf-compiler nettle-dev
 CC        ?= cc
 CSTD      := -std=c11 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE
 WARN      := -Wall -Wextra
 PKG_CFLAGS = $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 PKG_LIBS   = $(shell pkg-config --libs $(PKGS) 2>/dev/null)
 CFLAGS    ?= -O2 -g
-ALL_CFLAGS = $(CSTD) $(WARN) $(CFLAGS) -fPIC -pthread -Iengine $(PKG_CFLAGS)
+ALL_CFLAGS = $(CSTD) $(WARN) $(CFLAGS) -fPIC -pthread -Iengine -Ibuild/gen $(PKG_CFLAGS)
 LIBS       = $(PKG_LIBS) -lm -pthread -ldl
 SAN        = -O1 -g -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
 
 ALL_SRC   := $(wildcard engine/*.c)
 CORE_SRC  := $(filter-out engine/bind%.c engine/main.c,$(ALL_SRC))
 BIND_SRC  := $(filter engine/bind%.c,$(ALL_SRC))
-HDRS      := $(wildcard engine/*.h)
-CORE_OBJ  := $(CORE_SRC:engine/%.c=build/obj/%.o)
+# OVF messages: engine/ovf/ovf.proto compiled by protoc-c into build/gen
+GEN_HDR   := build/gen/ovf.pb-c.h
+HDRS      := $(wildcard engine/*.h) $(GEN_HDR)
+CORE_OBJ  := $(CORE_SRC:engine/%.c=build/obj/%.o) build/obj/ovf.pb-c.o
 BIND_OBJ  := $(BIND_SRC:engine/%.c=build/obj/%.o)
-SAN_OBJ   := $(CORE_SRC:engine/%.c=build/asan/obj/%.o)
+SAN_OBJ   := $(CORE_SRC:engine/%.c=build/asan/obj/%.o) build/asan/obj/ovf.pb-c.o
 SAN_BIND  := $(BIND_SRC:engine/%.c=build/asan/obj/%.o) build/asan/obj/main.o
 CTESTS    := $(patsubst tests/c/%.c,%,$(wildcard tests/c/test_*.c))
 
@@ -40,6 +43,13 @@ check-deps:
 build/obj/%.o: engine/%.c $(HDRS) | build/obj
 	$(CC) $(ALL_CFLAGS) -c $< -o $@
 build/asan/obj/%.o: engine/%.c $(HDRS) | build/asan/obj
+	$(CC) $(ALL_CFLAGS) $(SAN) -c $< -o $@
+build/gen/ovf.pb-c.c build/gen/ovf.pb-c.h: engine/ovf/ovf.proto
+	@mkdir -p build/gen
+	protoc-c --c_out=build/gen -Iengine/ovf $<
+build/obj/ovf.pb-c.o: build/gen/ovf.pb-c.c $(GEN_HDR) | build/obj
+	$(CC) $(ALL_CFLAGS) -c $< -o $@
+build/asan/obj/ovf.pb-c.o: build/gen/ovf.pb-c.c $(GEN_HDR) | build/asan/obj
 	$(CC) $(ALL_CFLAGS) $(SAN) -c $< -o $@
 build/obj build/asan/obj build/tests build/asan/tests:
 	mkdir -p $@

@@ -12,6 +12,7 @@
 #include <unistd.h>
 #include "bind.h"
 #include "cli.h"
+#include "bind_ovf.h"
 #include "kb.h"
 #include "place.h"
 
@@ -196,6 +197,7 @@ static int l_layers(lua_State *L) {
 /* ---- run ---- */
 typedef struct sinkctx {
   gr_cli_writer *w[GR_MAX_LASERS + 1]; /* [0] all, or one per laser when split */
+  gr_ovf_writer *ovf;  /* format "ovf": instead of w[] */
   int split, nlasers;
   gr_layer *tmp;
   int *keep;           /* layer numbers to keep */
@@ -219,6 +221,7 @@ static int sink(void *ud, int g, const gr_layer *l, gr_err *e) {
     }
   }
   if (rc == GR_OK && s->w[0]) rc = gr_cli_write_layer(s->w[0], l, e);
+  if (rc == GR_OK && s->ovf) rc = gr_ovf_write_layer(s->ovf, l, NULL, e);
   s->t_write += gr_now() - t0;
   for (int i = 0; i < s->nkeep && rc == GR_OK; i++)
     if (s->keep[i] == g && !s->kept[i]) {
@@ -353,8 +356,8 @@ static int l_run(lua_State *L) {
   luaL_checktype(L, 2, LUA_TTABLE);
   const char *out = gr_opt_string(L, 2, "output", NULL);
   const char *format = gr_opt_string(L, 2, "format", "ascii");
-  if (strcmp(format, "ascii") && strcmp(format, "binary"))
-    return luaL_error(L, "bad option 'format' (ascii or binary, got '%s')", format);
+  if (strcmp(format, "ascii") && strcmp(format, "binary") && strcmp(format, "ovf"))
+    return luaL_error(L, "bad option 'format' (ascii, binary or ovf, got '%s')", format);
   int binary = !strcmp(format, "binary");
   gr_job_run_opts r;
   memset(&r, 0, sizeof r);
@@ -420,7 +423,10 @@ static int l_run(lua_State *L) {
     kb = gr_kb_open(kbdir, &e);
     if (!kb) rc = e.code ? e.code : GR_EIO;
   }
-  if (rc == GR_OK && out) {
+  if (rc == GR_OK && out && !strcmp(format, "ovf")) {
+    s.ovf = gr_lua_ovf_open(L, 2, out, o, h.layers, &e); /* one file: the lasers are inside */
+    if (!s.ovf) rc = e.code ? e.code : GR_EIO;
+  } else if (rc == GR_OK && out) {
     s.w[0] = gr_cli_open(out, &h, &e);
     if (!s.w[0]) rc = e.code ? e.code : GR_EIO;
     for (int la = 0; s.split && rc == GR_OK && la < o->nlasers; la++) {
@@ -444,6 +450,13 @@ static int l_run(lua_State *L) {
     gr_err e2;
     gr_err_clear(&e2);
     int crc = gr_cli_close(s.w[w], rc == GR_OK, &e2);
+    if (rc == GR_OK && crc) { rc = crc; e = e2; }
+  }
+  if (s.ovf) {
+    gr_err e2;
+    gr_err_clear(&e2);
+    gr_ovf_set_volume(s.ovf, gr_job_get_stats(j)->solid_area * o->layer);
+    int crc = gr_ovf_close(s.ovf, rc == GR_OK, &e2);
     if (rc == GR_OK && crc) { rc = crc; e = e2; }
   }
   gr_kb_close(kb);

@@ -6,7 +6,9 @@ local M = {}
 local USAGE = [[
 usage: gradus run RECIPE [-D name=value]... [-o OUTPUT] [--stats FILE] [-q]
        gradus sweep RECIPE -D name=v1,v2,... -D other=a:b:step [-j N] [-o DIR]
-       gradus cli info FILE        layers, bounds, counts and lengths of a CLI file
+       gradus info FILE            layers, z range, blocks, vectors and lengths of a CLI or OVF file
+       gradus convert IN OUT [--format ascii|binary|ovf]   CLI <-> OVF (format from OUT's extension)
+       gradus cli info FILE        the same as gradus info FILE
        gradus kb list|show KEY|verify|prune [--dir DIR]
        gradus                      interactive Lua prompt with gradus loaded
        gradus --version | help
