@@ -32,7 +32,11 @@ int gr_cli_style_index(gr_cli_header *h, int id, double power, double speed, dou
   s->jump_speed = NAN;
   s->name[0] = 0;
   for (int i = 0; i < h->nlabels; i++)
-    if (h->label[i].id == id) snprintf(s->name, sizeof s->name, "%s", h->label[i].text);
+    if (h->label[i].id == id) {
+      size_t k = strnlen(h->label[i].text, sizeof h->label[i].text - 1);
+      memcpy(s->name, h->label[i].text, k); /* both arrays live in h: no snprintf (restrict) */
+      s->name[k] = 0;
+    }
   if (!s->name[0]) snprintf(s->name, sizeof s->name, "laser%d-%s", id >= 1 ? (id - 1) / 3 + 1 : 1,
                             KIND[id >= 1 ? (id - 1) % 3 : GR_EDGE]);
   return h->nstyles++;
@@ -256,7 +260,7 @@ static int read_cli(rd *r, const char *t, size_t len, gr_err *e) {
   const char *path = r->path;
   const char *he = len >= 13 ? memmem(t, len, "$$HEADEREND", 11) : NULL;
   if (len < 13 || memcmp(t, "$$HEADERSTART", 13) || !he)
-    return gr_fail(e, GR_EPARSE, "%s:1: not a CLI file (no $$HEADERSTART ... $$HEADEREND)", path);
+    return gr_fail(e, GR_EPARSE, "%s:1: byte 0: neither a CLI file (no $$HEADERSTART ... $$HEADEREND) nor an OVF file (no magic \"LVF!\")", path);
   if (read_header(path, t, he, r->h, e)) return e->code;
   size_t pos = (size_t)(he - t) + 11;
   if (r->h->binary) return read_binary(r, (const unsigned char *)t, len, pos, e);
