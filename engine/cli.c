@@ -1,6 +1,7 @@
 /* cli.c: CLI 2.0 writer, see cli.h (the reader: cli_read.c). */
 #define _GNU_SOURCE /* O_DIRECT, memmem */
 #include "cli.h"
+#include "outbuf.h"
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -19,82 +20,17 @@ gr_cli_header gr_cli_header_defaults(void) {
   return h;
 }
 
-/* Output goes through a second descriptor on the temporary file opened with
- * O_DIRECT where the file system allows it: whole 4 KiB blocks from an
- * aligned buffer go straight to the disk instead of being copied into the
- * page cache (on this machine 2.3 GB/s instead of 0.4-1.4 GB/s, and a
- * gigabyte-scale CLI no longer floods the cache). The last partial block is
- * written after clearing O_DIRECT. Without O_DIRECT (tmpfs, some network
- * file systems) the same code writes through the page cache. */
-#define CLI_ALIGN 4096
-
+/* Output through gr_outbuf (outbuf.h): O_DIRECT where the file system allows it. */
 struct gr_cli_writer {
-  gr_atomic a;
+  gr_outbuf o;
   gr_cli_header h;
-  int fd;         /* writes go here (O_DIRECT when `direct`) */
-  int direct;
-  char *buf;      /* output buffer, CLI_ALIGN-aligned */
-  size_t n, cap;
   int layers_written;
 };
 
 static const char *const KIND[GR_NKINDS] = {"contour", "hatch", "edge"};
 
-static int write_all(gr_cli_writer *w, const char *p, size_t k, gr_err *e) {
-  while (k > 0) {
-    ssize_t r = write(w->fd, p, k);
-    if (r < 0 && errno == EINTR) continue;
-    if (r < 0 && errno == EINVAL && w->direct) { /* the file system refuses direct I/O after all */
-      w->direct = 0;
-      fcntl(w->fd, F_SETFL, fcntl(w->fd, F_GETFL) & ~O_DIRECT);
-      continue;
-    }
-    if (r <= 0) return gr_fail(e, GR_EIO, "cannot write %s: %s", w->a.path, strerror(r < 0 ? errno : ENOSPC));
-    p += r;
-    k -= (size_t)r;
-  }
-  return GR_OK;
-}
-
-/* Write the buffer out; with `all` == 0 and direct I/O only whole blocks go,
- * the rest (< CLI_ALIGN bytes) moves to the buffer's start. */
-static int flush_some(gr_cli_writer *w, int all, gr_err *e) {
-  size_t k = w->n;
-  if (w->direct) {
-    if (all) {
-      fcntl(w->fd, F_SETFL, fcntl(w->fd, F_GETFL) & ~O_DIRECT);
-      w->direct = 0;
-    } else {
-      k -= k % CLI_ALIGN;
-    }
-  }
-  if (write_all(w, w->buf, k, e)) return e->code;
-  memmove(w->buf, w->buf + k, w->n - k);
-  w->n -= k;
-  return GR_OK;
-}
-
-static int reserve(gr_cli_writer *w, size_t k, gr_err *e) {
-  if (w->n + k <= w->cap) return GR_OK;
-  if (flush_some(w, 0, e)) return e->code;
-  if (w->n + k > w->cap) {
-    size_t cap = (w->n + k + CLI_ALIGN - 1) / CLI_ALIGN * CLI_ALIGN;
-    void *nb = NULL;
-    if (posix_memalign(&nb, CLI_ALIGN, cap)) return gr_fail(e, GR_EMEM, "out of memory");
-    memcpy(nb, w->buf, w->n);
-    free(w->buf);
-    w->buf = nb;
-    w->cap = cap;
-  }
-  return GR_OK;
-}
-
-static int put(gr_cli_writer *w, const void *p, size_t k, gr_err *e) {
-  if (reserve(w, k, e)) return e->code;
-  memcpy(w->buf + w->n, p, k);
-  w->n += k;
-  return GR_OK;
-}
+static int reserve(gr_cli_writer *w, size_t k, gr_err *e) { return gr_outbuf_reserve(&w->o, k, e); }
+static int put(gr_cli_writer *w, const void *p, size_t k, gr_err *e) { return gr_outbuf_put(&w->o, p, k, e); }
 
 static int putf(gr_cli_writer *w, gr_err *e, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 #include <stdarg.h>
@@ -102,10 +38,11 @@ static int putf(gr_cli_writer *w, gr_err *e, const char *fmt, ...) {
   if (reserve(w, 512, e)) return e->code;
   va_list ap;
   va_start(ap, fmt);
-  int k = vsnprintf(w->buf + w->n, w->cap - w->n, fmt, ap);
+  gr_outbuf *o = &w->o;
+  int k = vsnprintf(o->buf + o->n, o->cap - o->n, fmt, ap);
   va_end(ap);
-  if (k < 0 || (size_t)k >= w->cap - w->n) return gr_fail(e, GR_EARG, "CLI line too long");
-  w->n += (size_t)k;
+  if (k < 0 || (size_t)k >= o->cap - o->n) return gr_fail(e, GR_EARG, "CLI line too long");
+  o->n += (size_t)k;
   return GR_OK;
 }
 
@@ -114,14 +51,7 @@ gr_cli_writer *gr_cli_open(const char *path, const gr_cli_header *h, gr_err *e) 
   gr_cli_writer *w = calloc(1, sizeof *w);
   if (!w) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
   w->h = *h;
-  w->cap = 4 << 20;
-  void *buf = NULL;
-  if (posix_memalign(&buf, CLI_ALIGN, w->cap)) { free(w); return gr_fail(e, GR_EMEM, "out of memory"), NULL; }
-  w->buf = buf;
-  if (gr_atomic_open(&w->a, path, e)) { free(w->buf); free(w); return NULL; }
-  w->fd = h->buffered ? -1 : open(w->a.tmp, O_WRONLY | O_DIRECT);
-  w->direct = w->fd >= 0;
-  if (w->fd < 0) w->fd = fileno(w->a.fp); /* no direct I/O here: the stream's descriptor, unbuffered use */
+  if (gr_outbuf_open(&w->o, path, h->buffered, 4 << 20, e)) { free(w); return NULL; }
   time_t now = time(NULL);
   struct tm tm;
   gmtime_r(&now, &tm);
@@ -190,7 +120,7 @@ int gr_cli_write_layer(gr_cli_writer *w, const gr_layer *l, gr_err *e) {
       if (bk->shape == GR_SEGMENTS) {
         size_t ns = bk->n / 2;
         if (reserve(w, 10 + 16 * ns, e)) return e->code;
-        unsigned char *o = (unsigned char *)w->buf + w->n;
+        unsigned char *o = (unsigned char *)w->o.buf + w->o.n;
         put_u16(o, 132);
         put_i32(o + 2, id);
         put_i32(o + 6, (int32_t)ns);
@@ -198,10 +128,10 @@ int gr_cli_write_layer(gr_cli_writer *w, const gr_layer *l, gr_err *e) {
           put_f32(o + 10 + 8 * q, p[2 * q] / u);
           put_f32(o + 14 + 8 * q, p[2 * q + 1] / u);
         }
-        w->n += 10 + 16 * ns;
+        w->o.n += 10 + 16 * ns;
       } else {
         if (reserve(w, 14 + 8 * bk->n, e)) return e->code;
-        unsigned char *o = (unsigned char *)w->buf + w->n;
+        unsigned char *o = (unsigned char *)w->o.buf + w->o.n;
         put_u16(o, 130);
         put_i32(o + 2, id);
         put_i32(o + 6, bk->shape == GR_OPEN ? 2 : bk->dir);
@@ -210,7 +140,7 @@ int gr_cli_write_layer(gr_cli_writer *w, const gr_layer *l, gr_err *e) {
           put_f32(o + 14 + 8 * q, p[2 * q] / u);
           put_f32(o + 18 + 8 * q, p[2 * q + 1] / u);
         }
-        w->n += 14 + 8 * bk->n;
+        w->o.n += 14 + 8 * bk->n;
       }
     }
   } else {
@@ -225,13 +155,13 @@ int gr_cli_write_layer(gr_cli_writer *w, const gr_layer *l, gr_err *e) {
         if (putf(w, e, "$$POLYLINE/%d,%d,%zu", id, bk->shape == GR_OPEN ? 2 : bk->dir, bk->n)) return e->code;
       }
       if (reserve(w, 82 * bk->n + 1, e)) return e->code;
-      char *o = w->buf + w->n;
+      char *o = w->o.buf + w->o.n;
       for (size_t q = 0; q < 2 * bk->n; q++) {
         *o++ = ',';
         o += fmt_fixed4(o, p[q] / u);
       }
       *o++ = '\n';
-      w->n = (size_t)(o - w->buf);
+      w->o.n = (size_t)(o - w->o.buf);
     }
   }
   w->layers_written++;
@@ -241,15 +171,9 @@ int gr_cli_write_layer(gr_cli_writer *w, const gr_layer *l, gr_err *e) {
 int gr_cli_close(gr_cli_writer *w, int commit, gr_err *e) {
   if (!w) return GR_OK;
   int rc = GR_OK;
-  if (commit) {
-    if (!w->h.binary) rc = putf(w, e, "$$GEOMETRYEND\n");
-    if (!rc) rc = flush_some(w, 1, e);
-  }
-  if (w->fd >= 0 && w->fd != fileno(w->a.fp) && close(w->fd) && !rc && commit)
-    rc = gr_fail(e, GR_EIO, "cannot write %s: %s", w->a.path, strerror(errno));
-  if (commit && !rc) rc = gr_atomic_commit(&w->a, e);
-  else gr_atomic_abort(&w->a);
-  free(w->buf);
+  if (commit && !w->h.binary) rc = putf(w, e, "$$GEOMETRYEND\n");
+  int crc = gr_outbuf_close(&w->o, commit && !rc, e);
   free(w);
+  if (!rc) rc = crc;
   return rc;
 }

@@ -5,6 +5,7 @@
  * LUT. Messages are packed by protobuf-c. */
 #include "ovf.h"
 #include "ovf.pb-c.h"
+#include "outbuf.h"
 #include "place.h"
 #include "version.h"
 #include <errno.h>
@@ -15,7 +16,7 @@
 typedef OpenVectorFormat__VectorBlock Block;
 
 struct gr_ovf_writer {
-  gr_atomic a;
+  gr_outbuf o;         /* the file (direct I/O where possible) */
   gr_ovf_job j;
   gr_cli_style *style;  /* copy of j.style */
   char name[256];
@@ -50,11 +51,9 @@ gr_ovf_writer *gr_ovf_open(const char *path, const gr_ovf_job *j, gr_err *e) {
   w->j.style = w->style;
   w->lo[0] = w->lo[1] = INFINITY;
   w->hi[0] = w->hi[1] = -INFINITY;
-  if (gr_atomic_open(&w->a, path, e)) { free(w->style); free(w); return NULL; }
-  setvbuf(w->a.fp, NULL, _IOFBF, 1 << 20);
+  if (gr_outbuf_open(&w->o, path, 0, 4 << 20, e)) { free(w->style); free(w); return NULL; }
   unsigned char head[12] = {'L', 'V', 'F', '!'}; /* the job LUT position is filled in at close */
-  if (fwrite(head, 1, 12, w->a.fp) != 12) {
-    gr_fail(e, GR_EIO, "cannot write %s: %s", path, strerror(errno));
+  if (gr_outbuf_put(&w->o, head, 12, e)) {
     gr_ovf_close(w, 0, NULL);
     return NULL;
   }
@@ -70,7 +69,7 @@ static void put_i64(unsigned char *p, int64_t v) {
 /* Append message m to the layer buffer as varint32 length + message. */
 static int append(gr_ovf_writer *w, const ProtobufCMessage *m, gr_err *e) {
   size_t k = protobuf_c_message_get_packed_size(m);
-  if (k > 0x7fffffffu) return gr_fail(e, GR_EARG, "%s: an OVF message of %zu bytes is too large", w->a.path, k);
+  if (k > 0x7fffffffu) return gr_fail(e, GR_EARG, "%s: an OVF message of %zu bytes is too large", w->o.a.path, k);
   if (gr_grow(&w->buf, &w->cap, w->n + k + 5, 1)) return gr_fail(e, GR_EMEM, "out of memory");
   uint32_t v = (uint32_t)k;
   do {
@@ -170,8 +169,7 @@ int gr_ovf_write_layer(gr_ovf_writer *w, const gr_layer *l, const int *keys, gr_
   if (append(w, &lut.base, e)) return e->code;
   unsigned char p8[8];
   put_i64(p8, lutpos);
-  if (fwrite(p8, 1, 8, w->a.fp) != 8 || fwrite(w->buf, 1, w->n, w->a.fp) != w->n)
-    return gr_fail(e, GR_EIO, "cannot write %s: %s", w->a.path, strerror(errno));
+  if (gr_outbuf_put(&w->o, p8, 8, e) || gr_outbuf_put(&w->o, w->buf, w->n, e)) return e->code;
   w->planes[w->nplanes++] = start;
   w->pos = base + (int64_t)w->n;
   w->top = l->z;
@@ -278,16 +276,15 @@ static int job_tail(gr_ovf_writer *w, gr_err *e) {
   if (rc) return rc;
   unsigned char p8[8];
   put_i64(p8, lutpos);
-  if (fwrite(w->buf, 1, w->n, w->a.fp) != w->n || fseek(w->a.fp, 4, SEEK_SET) || fwrite(p8, 1, 8, w->a.fp) != 8)
-    return gr_fail(e, GR_EIO, "cannot write %s: %s", w->a.path, strerror(errno));
-  return GR_OK;
+  if (gr_outbuf_put(&w->o, w->buf, w->n, e) || gr_outbuf_flush(&w->o, e)) return e->code;
+  return gr_outbuf_pwrite(&w->o, p8, 8, 4, e);
 }
 
 int gr_ovf_close(gr_ovf_writer *w, int commit, gr_err *e) {
   if (!w) return GR_OK;
   int rc = commit ? job_tail(w, e) : GR_OK;
-  if (commit && !rc) rc = gr_atomic_commit(&w->a, e);
-  else gr_atomic_abort(&w->a);
+  int crc = gr_outbuf_close(&w->o, commit && !rc, e);
+  if (!rc) rc = crc;
   free(w->style);
   free(w->planes);
   free(w->bpos);
