@@ -40,8 +40,9 @@ static int scan_layer(void *ud, const gr_layer *l, const int *style, const gr_cl
     const double *p = l->xy + 2 * l->b[b].start;
     for (size_t q = 0; q < l->b[b].n; q++)
       for (int a = 0; a < 2; a++) {
-        s->lo[a] = fmin(s->lo[a], p[2 * q + a]);
-        s->hi[a] = fmax(s->hi[a], p[2 * q + a]);
+        double v = p[2 * q + a];
+        s->lo[a] = v < s->lo[a] ? v : s->lo[a]; /* not fmin: a libm call per coordinate */
+        s->hi[a] = v > s->hi[a] ? v : s->hi[a];
       }
   }
   return GR_OK;

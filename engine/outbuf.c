@@ -51,6 +51,7 @@ static int flush_some(gr_outbuf *o, int all, gr_err *e) {
     }
   }
   if (write_all(o, o->buf, k, e)) return e->code;
+  o->flushed += (long long)k;
   memmove(o->buf, o->buf + k, o->n - k);
   o->n -= k;
   return GR_OK;

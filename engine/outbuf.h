@@ -17,6 +17,7 @@ typedef struct gr_outbuf {
   int direct;
   char *buf;       /* GR_OUTBUF_ALIGN-aligned */
   size_t n, cap;   /* bytes pending, capacity */
+  long long flushed; /* bytes written to the file: buf[j] goes to offset flushed + j */
 } gr_outbuf;
 #define GR_OUTBUF_ALIGN 4096
 

@@ -20,13 +20,11 @@ struct gr_ovf_writer {
   gr_ovf_job j;
   gr_cli_style *style;  /* copy of j.style */
   char name[256];
-  int64_t pos;          /* bytes written so far */
+  int in_layer;         /* appending a layer: its room is reserved */
   int64_t *planes;      /* job LUT: start of each work plane */
   size_t nplanes, capplanes;
   int64_t *bpos;        /* this layer's block positions */
   size_t capbpos;
-  unsigned char *buf;   /* this layer's encoding (after its int64) */
-  size_t n, cap;
   float *pts;
   size_t cappts;
   int *used;            /* marking_params_keys used by blocks */
@@ -57,7 +55,6 @@ gr_ovf_writer *gr_ovf_open(const char *path, const gr_ovf_job *j, gr_err *e) {
     gr_ovf_close(w, 0, NULL);
     return NULL;
   }
-  w->pos = 12;
   return w;
 }
 
@@ -66,17 +63,23 @@ static void put_i64(unsigned char *p, int64_t v) {
   for (int i = 0; i < 8; i++) p[i] = (u >> (8 * i)) & 255;
 }
 
-/* Append message m to the layer buffer as varint32 length + message. */
+/* Append message m to the output as varint32 length + message. Within a
+ * layer the room was reserved in advance (layer_bound), so nothing is
+ * written out before the layer's int64 is filled in. */
 static int append(gr_ovf_writer *w, const ProtobufCMessage *m, gr_err *e) {
   size_t k = protobuf_c_message_get_packed_size(m);
   if (k > 0x7fffffffu) return gr_fail(e, GR_EARG, "%s: an OVF message of %zu bytes is too large", w->o.a.path, k);
-  if (gr_grow(&w->buf, &w->cap, w->n + k + 5, 1)) return gr_fail(e, GR_EMEM, "out of memory");
+  if (w->o.n + k + 5 > w->o.cap) {
+    if (w->in_layer) return gr_fail(e, GR_EARG, "%s: OVF layer larger than its reserved bound", w->o.a.path);
+    if (gr_outbuf_reserve(&w->o, k + 5, e)) return e->code;
+  }
+  unsigned char *o = (unsigned char *)w->o.buf;
   uint32_t v = (uint32_t)k;
   do {
-    w->buf[w->n++] = (unsigned char)((v & 127) | (v > 127 ? 128 : 0));
+    o[w->o.n++] = (unsigned char)((v & 127) | (v > 127 ? 128 : 0));
     v >>= 7;
   } while (v);
-  w->n += protobuf_c_message_pack(m, w->buf + w->n);
+  w->o.n += protobuf_c_message_pack(m, o + w->o.n);
   return GR_OK;
 }
 
@@ -87,16 +90,54 @@ static int note_key(gr_ovf_writer *w, int key) {
   return GR_OK;
 }
 
+/* What a work plane's shell says about its blocks, gathered while encoding. */
+typedef struct plane_acc {
+  double lo[2], hi[2]; /* bounds, mm */
+  double scan, jump;   /* scan and jump (laser off, in block order) length, mm */
+  double px, py;       /* where the last vector ended */
+  int have;
+} plane_acc;
+
+/* Points of block b as floats into w->pts, its bounds, lengths and jumps
+ * into a: one pass over the points (polylines: a jump to the first point,
+ * segments: a jump to each start). */
+static void convert_block(gr_ovf_writer *w, const gr_layer *l, const gr_block *b, plane_acc *a) {
+  const double *p = l->xy + 2 * b->start;
+  int seg = b->shape == GR_SEGMENTS;
+  double lo0 = a->lo[0], lo1 = a->lo[1], hi0 = a->hi[0], hi1 = a->hi[1], scan = 0, jump = 0, px = a->px, py = a->py;
+  int have = a->have;
+  float *f = w->pts;
+  for (size_t q = 0; q < b->n; q++) {
+    double x = p[2 * q], y = p[2 * q + 1];
+    f[2 * q] = (float)x;
+    f[2 * q + 1] = (float)y;
+    lo0 = x < lo0 ? x : lo0;
+    hi0 = x > hi0 ? x : hi0;
+    lo1 = y < lo1 ? y : lo1;
+    hi1 = y > hi1 ? y : hi1;
+    double d = gr_len2d(x - px, y - py);
+    if (q == 0 || (seg && !(q & 1))) { /* a start: the laser jumps here */
+      if (have) jump += d;
+      have = 1;
+    } else {
+      scan += d;
+    }
+    px = x;
+    py = y;
+  }
+  a->lo[0] = lo0; a->lo[1] = lo1; a->hi[0] = hi0; a->hi[1] = hi1;
+  a->scan += scan;
+  a->jump += jump;
+  a->px = px;
+  a->py = py;
+  a->have = have;
+}
+
 /* Encode block b of l with marking_params_key `key`. */
-static int put_block(gr_ovf_writer *w, const gr_layer *l, const gr_block *b, int key, gr_err *e) {
+static int put_block(gr_ovf_writer *w, const gr_layer *l, const gr_block *b, int key, plane_acc *a, gr_err *e) {
   size_t nf = 2 * b->n;
   if (gr_grow(&w->pts, &w->cappts, nf + 1, sizeof *w->pts) || note_key(w, key)) return gr_fail(e, GR_EMEM, "out of memory");
-  const double *p = l->xy + 2 * b->start;
-  for (size_t q = 0; q < nf; q++) w->pts[q] = (float)p[q];
-  for (size_t q = 0; q < b->n; q++) {
-    w->lo[0] = fmin(w->lo[0], p[2 * q]); w->hi[0] = fmax(w->hi[0], p[2 * q]);
-    w->lo[1] = fmin(w->lo[1], p[2 * q + 1]); w->hi[1] = fmax(w->hi[1], p[2 * q + 1]);
-  }
+  convert_block(w, l, b, a);
   OpenVectorFormat__VectorBlock__LineSequence ls = OPEN_VECTOR_FORMAT__VECTOR_BLOCK__LINE_SEQUENCE__INIT;
   OpenVectorFormat__VectorBlock__Hatches ht = OPEN_VECTOR_FORMAT__VECTOR_BLOCK__HATCHES__INIT;
   OpenVectorFormat__VectorBlock__VectorBlockMetaData md = OPEN_VECTOR_FORMAT__VECTOR_BLOCK__VECTOR_BLOCK_META_DATA__INIT;
@@ -135,25 +176,33 @@ static OpenVectorFormat__AxisAlignedBox2D box(const double lo[2], const double h
   return bx;
 }
 
-int gr_ovf_write_layer(gr_ovf_writer *w, const gr_layer *l, const int *keys, gr_err *e) {
-  int64_t start = w->pos, base = start + 8; /* base: file position of buf[0] */
-  w->n = 0;
-  if (gr_grow(&w->bpos, &w->capbpos, l->nb + 1, sizeof *w->bpos) ||
-      gr_grow(&w->planes, &w->capplanes, w->nplanes + 1, sizeof *w->planes))
-    return gr_fail(e, GR_EMEM, "out of memory");
-  double lo[2], hi[2];
-  gr_layer_bounds(l, lo, hi);
+static int64_t here(const gr_ovf_writer *w) { return (int64_t)(w->o.flushed + (long long)w->o.n); }
+
+/* An upper bound of a layer's bytes: per block its floats and at most 128
+ * bytes of length, keys, metadata; the shell; the LUT (10 bytes a position). */
+static size_t layer_bound(const gr_layer *l) {
+  return 8 + 256 + 8 * l->npts + 138 * l->nb;
+}
+
+/* A layer: the int64 (filled in last, still in the buffer), the blocks, the
+ * shell and the LUT, encoded straight into the output buffer. */
+static int encode_layer(gr_ovf_writer *w, const gr_layer *l, const int *keys, gr_err *e) {
+  size_t slot = w->o.n;
+  w->o.n += 8;
+  plane_acc a = {{INFINITY, INFINITY}, {-INFINITY, -INFINITY}, 0, 0, 0, 0, 0};
   for (size_t b = 0; b < l->nb; b++) {
     const gr_block *bk = &l->b[b];
-    w->bpos[b] = base + (int64_t)w->n;
-    if (put_block(w, l, bk, keys ? keys[b] : bk->laser * 3 + bk->kind + 1, e)) return e->code;
+    w->bpos[b] = here(w);
+    if (put_block(w, l, bk, keys ? keys[b] : bk->laser * 3 + bk->kind + 1, &a, e)) return e->code;
   }
-  gr_layer_stats st;
-  gr_layer_stats_get(l, &st);
+  for (int k = 0; k < 2; k++) {
+    w->lo[k] = fmin(w->lo[k], a.lo[k]);
+    w->hi[k] = fmax(w->hi[k], a.hi[k]);
+  }
   OpenVectorFormat__WorkPlane__WorkPlaneMetaData md = OPEN_VECTOR_FORMAT__WORK_PLANE__WORK_PLANE_META_DATA__INIT;
-  md.total_scan_distance_in_mm = st.length[0] + st.length[1] + st.length[2];
-  md.total_jump_distance_in_mm = st.jump_length;
-  OpenVectorFormat__AxisAlignedBox2D bx = box(lo, hi);
+  md.total_scan_distance_in_mm = a.scan;
+  md.total_jump_distance_in_mm = a.jump;
+  OpenVectorFormat__AxisAlignedBox2D bx = box(a.lo, a.hi);
   md.bounds = &bx;
   OpenVectorFormat__WorkPlane wp = OPEN_VECTOR_FORMAT__WORK_PLANE__INIT;
   wp.z_pos_in_mm = (float)l->z;
@@ -161,17 +210,27 @@ int gr_ovf_write_layer(gr_ovf_writer *w, const gr_layer *l, const int *keys, gr_
   wp.work_plane_number = (int32_t)w->nplanes;
   wp.meta_data = &md;
   OpenVectorFormat__WorkPlaneLUT lut = OPEN_VECTOR_FORMAT__WORK_PLANE_LUT__INIT;
-  lut.workplaneshellposition = base + (int64_t)w->n;
+  lut.workplaneshellposition = here(w);
   lut.n_vectorblockspositions = l->nb;
   lut.vectorblockspositions = w->bpos;
   if (append(w, &wp.base, e)) return e->code;
-  int64_t lutpos = base + (int64_t)w->n;
+  int64_t lutpos = here(w);
   if (append(w, &lut.base, e)) return e->code;
-  unsigned char p8[8];
-  put_i64(p8, lutpos);
-  if (gr_outbuf_put(&w->o, p8, 8, e) || gr_outbuf_put(&w->o, w->buf, w->n, e)) return e->code;
+  put_i64((unsigned char *)w->o.buf + slot, lutpos);
+  return GR_OK;
+}
+
+int gr_ovf_write_layer(gr_ovf_writer *w, const gr_layer *l, const int *keys, gr_err *e) {
+  if (gr_grow(&w->bpos, &w->capbpos, l->nb + 1, sizeof *w->bpos) ||
+      gr_grow(&w->planes, &w->capplanes, w->nplanes + 1, sizeof *w->planes))
+    return gr_fail(e, GR_EMEM, "out of memory");
+  if (gr_outbuf_reserve(&w->o, layer_bound(l), e)) return e->code;
+  int64_t start = here(w);
+  w->in_layer = 1;
+  int rc = encode_layer(w, l, keys, e);
+  w->in_layer = 0;
+  if (rc) return rc;
   w->planes[w->nplanes++] = start;
-  w->pos = base + (int64_t)w->n;
   w->top = l->z;
   return GR_OK;
 }
@@ -265,18 +324,17 @@ static int job_tail(gr_ovf_writer *w, gr_err *e) {
   job.parts_map = &ppe;
   job.num_work_planes = (int32_t)w->nplanes;
   OpenVectorFormat__JobLUT lut = OPEN_VECTOR_FORMAT__JOB_LUT__INIT;
-  lut.jobshellposition = w->pos;
+  lut.jobshellposition = here(w);
   lut.n_workplanepositions = w->nplanes;
   lut.workplanepositions = w->planes;
-  w->n = 0;
   int rc = append(w, &job.base, e);
-  int64_t lutpos = w->pos + (int64_t)w->n;
+  int64_t lutpos = here(w);
   if (!rc) rc = append(w, &lut.base, e);
   free(ent); free(pent); free(mp); free(names);
   if (rc) return rc;
   unsigned char p8[8];
   put_i64(p8, lutpos);
-  if (gr_outbuf_put(&w->o, w->buf, w->n, e) || gr_outbuf_flush(&w->o, e)) return e->code;
+  if (gr_outbuf_flush(&w->o, e)) return e->code;
   return gr_outbuf_pwrite(&w->o, p8, 8, 4, e);
 }
 
@@ -288,7 +346,6 @@ int gr_ovf_close(gr_ovf_writer *w, int commit, gr_err *e) {
   free(w->style);
   free(w->planes);
   free(w->bpos);
-  free(w->buf);
   free(w->pts);
   free(w->used);
   free(w);

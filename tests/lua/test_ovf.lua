@@ -112,6 +112,14 @@ t.test("protoc --decode_raw: job shell and work-plane shell carry the published 
   local wp_txt = decode_raw(msg_at(wshell))
   t.ok(wp_txt:find("^4: 0x3da3d70a\n"), "z_pos_in_mm (4) = 0.08 as float:\n" .. wp_txt)
   t.ok(wp_txt:find("\n8: %d+\n") and wp_txt:find("\n10: 1\n") and wp_txt:find("\n13 {\n  1: 0x"), "num_blocks (8), work_plane_number (10), meta_data (13)")
+
+  -- the shell's total scan (13.1) and jump (13.2) distances against the layer's own stats
+  local st = gradus.cli.read(cli).layers[2]:stats()
+  local function f64(hex) return (string.unpack("<d", string.pack("<I8", tonumber(hex)))) end
+  local scan, jump = wp_txt:match("\n13 {\n  1: (0x%x+)\n  2: (0x%x+)\n")
+  t.ok(scan, "scan and jump distances present")
+  t.near(f64(scan), st.contour.length + st.hatch.length + st.edge.length, 1e-3, "total_scan_distance_in_mm")
+  t.near(f64(jump), st.jump_length, 1e-3, "total_jump_distance_in_mm")
 end)
 
 -- float from a decode_raw fixed32 "0x..." text
