@@ -35,10 +35,10 @@ local function size(path)
 end
 
 local cli, ovf = dir .. "/cube.cli", dir .. "/cube.ovf"
-local tcold = run("cold", "-D format=binary", cli) -- fills the knowledge base
+local tcold = run("cold", "-D format=binary-long", cli) -- fills the knowledge base
 local best = { cli = { math.huge, math.huge }, ovf = { math.huge, math.huge } }
 for _ = 1, runs do
-  for _, f in ipairs({ { "cli", "-D format=binary", cli }, { "ovf", "-D format=ovf", ovf } }) do
+  for _, f in ipairs({ { "cli", "-D format=binary-long", cli }, { "ovf", "-D format=ovf", ovf } }) do
     local wall, write = run(f[1], f[2], f[3])
     best[f[1]][1] = math.min(best[f[1]][1], wall)
     best[f[1]][2] = math.min(best[f[1]][2], write)

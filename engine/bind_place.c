@@ -356,9 +356,9 @@ static int l_run(lua_State *L) {
   luaL_checktype(L, 2, LUA_TTABLE);
   const char *out = gr_opt_string(L, 2, "output", NULL);
   const char *format = gr_opt_string(L, 2, "format", "ascii");
-  if (strcmp(format, "ascii") && strcmp(format, "binary") && strcmp(format, "ovf"))
-    return luaL_error(L, "bad option 'format' (ascii, binary or ovf, got '%s')", format);
-  int binary = !strcmp(format, "binary");
+  if (strcmp(format, "ascii") && strcmp(format, "binary") && strcmp(format, "binary-long") && strcmp(format, "ovf"))
+    return luaL_error(L, "bad option 'format' (ascii, binary, binary-long or ovf, got '%s')", format);
+  int binary = !strncmp(format, "binary", 6);
   gr_job_run_opts r;
   memset(&r, 0, sizeof r);
   r.direct = gr_opt_boolean(L, 2, "direct", 0);
@@ -417,6 +417,9 @@ static int l_run(lua_State *L) {
     h.lo[a] = o->origin[a];
     h.hi[a] = o->origin[a] + o->n[a] * o->cell;
   }
+  /* binary: the short form (16-bit coordinates) when the part's box fits at the unit */
+  h.short_form = !strcmp(format, "binary");
+  for (int a = 0; a < 3; a++) h.short_form &= h.lo[a] >= 0 && h.hi[a] / h.units <= 65535;
   int rc = GR_OK;
   gr_kb *kb = NULL;
   if (kbdir[0] && !r.direct) {
@@ -445,6 +448,7 @@ static int l_run(lua_State *L) {
     rc = gr_job_run(j, &r, &e);
   }
   /* commit every writer only if everything went well; else remove temporaries */
+  const char *form = s.ovf ? "ovf" : s.w[0] ? gr_cli_form(s.w[0]) : NULL;
   for (int w = 0; w <= GR_MAX_LASERS; w++) {
     if (!s.w[w]) continue;
     gr_err e2;
@@ -469,6 +473,10 @@ static int l_run(lua_State *L) {
     return gr_lua_error(L, &e);
   }
   push_stats(L, j, &s, h.units);
+  if (form) { /* what the output holds: ascii, long, short, short+long, ovf */
+    lua_pushstring(L, form);
+    lua_setfield(L, -2, "form");
+  }
   lua_newtable(L);
   for (int i = 0; i < nkeep; i++) {
     if (!s.kept[i]) continue;

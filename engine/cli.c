@@ -25,6 +25,7 @@ struct gr_cli_writer {
   gr_outbuf o;
   gr_cli_header h;
   int layers_written;
+  long shorts, longs; /* geometry commands written in short and long form */
 };
 
 static const char *const KIND[GR_NKINDS] = {"contour", "hatch", "edge"};
@@ -106,43 +107,85 @@ static int fmt_fixed4(char *o, double v) {
   return n;
 }
 
+/* v in units as a short-form coordinate (0..65535), or -1 when it does not fit. */
+static long short_of(double v) {
+  double r = floor(v + 0.5);
+  return r >= 0 && r <= 65535 ? (long)r : -1;
+}
+
+/* Block bk (points p, CLI id) as a short command 129/131 with uint16
+ * coordinates; 0 (nothing written) when its id, count or a coordinate does
+ * not fit 16 bits: the caller writes the long command instead. */
+static int short_block(gr_cli_writer *w, const gr_block *bk, const double *p, int id, int *done, gr_err *e) {
+  double u = w->h.units;
+  int seg = bk->shape == GR_SEGMENTS;
+  size_t cnt = seg ? bk->n / 2 : bk->n, npts = seg ? 2 * cnt : cnt, hd = seg ? 6 : 8;
+  *done = 0;
+  if (id < 0 || id > 65535 || cnt > 65535) return GR_OK;
+  for (size_t q = 0; q < 2 * bk->n; q++) if (short_of(p[q] / u) < 0) return GR_OK;
+  if (reserve(w, hd + 4 * npts, e)) return e->code;
+  unsigned char *o = (unsigned char *)w->o.buf + w->o.n;
+  put_u16(o, seg ? 131 : 129);
+  put_u16(o + 2, (unsigned)id);
+  if (!seg) put_u16(o + 4, (unsigned)(bk->shape == GR_OPEN ? 2 : bk->dir));
+  put_u16(o + hd - 2, (unsigned)cnt);
+  for (size_t q = 0; q < 2 * npts; q++) put_u16(o + hd + 2 * q, (unsigned)short_of(p[q] / u));
+  w->o.n += hd + 4 * npts;
+  w->shorts++;
+  *done = 1;
+  return GR_OK;
+}
+
+/* A binary layer: long commands (127, 130, 132), or short ones (128, 129,
+ * 131) where h.short_form asks and the values fit. */
+static int binary_layer(gr_cli_writer *w, const gr_layer *l, gr_err *e) {
+  double u = w->h.units;
+  long zs = w->h.short_form ? short_of(l->z / u) : -1;
+  unsigned char hd[16];
+  put_u16(hd, zs >= 0 ? 128 : 127);
+  if (zs >= 0) put_u16(hd + 2, (unsigned)zs);
+  else put_f32(hd + 2, l->z / u);
+  if (put(w, hd, zs >= 0 ? 4 : 6, e)) return e->code;
+  for (size_t b = 0; b < l->nb; b++) {
+    const gr_block *bk = &l->b[b];
+    const double *p = l->xy + 2 * bk->start;
+    int id = bk->laser * 3 + bk->kind + 1, done = 0;
+    if (w->h.short_form && short_block(w, bk, p, id, &done, e)) return e->code;
+    if (done) continue;
+    w->longs++;
+    if (bk->shape == GR_SEGMENTS) {
+      size_t ns = bk->n / 2;
+      if (reserve(w, 10 + 16 * ns, e)) return e->code;
+      unsigned char *o = (unsigned char *)w->o.buf + w->o.n;
+      put_u16(o, 132);
+      put_i32(o + 2, id);
+      put_i32(o + 6, (int32_t)ns);
+      for (size_t q = 0; q < 2 * ns; q++) {
+        put_f32(o + 10 + 8 * q, p[2 * q] / u);
+        put_f32(o + 14 + 8 * q, p[2 * q + 1] / u);
+      }
+      w->o.n += 10 + 16 * ns;
+    } else {
+      if (reserve(w, 14 + 8 * bk->n, e)) return e->code;
+      unsigned char *o = (unsigned char *)w->o.buf + w->o.n;
+      put_u16(o, 130);
+      put_i32(o + 2, id);
+      put_i32(o + 6, bk->shape == GR_OPEN ? 2 : bk->dir);
+      put_i32(o + 10, (int32_t)bk->n);
+      for (size_t q = 0; q < bk->n; q++) {
+        put_f32(o + 14 + 8 * q, p[2 * q] / u);
+        put_f32(o + 18 + 8 * q, p[2 * q + 1] / u);
+      }
+      w->o.n += 14 + 8 * bk->n;
+    }
+  }
+  return GR_OK;
+}
+
 int gr_cli_write_layer(gr_cli_writer *w, const gr_layer *l, gr_err *e) {
   double u = w->h.units;
   if (w->h.binary) {
-    unsigned char hd[16];
-    put_u16(hd, 127);
-    put_f32(hd + 2, l->z / u);
-    if (put(w, hd, 6, e)) return e->code;
-    for (size_t b = 0; b < l->nb; b++) {
-      const gr_block *bk = &l->b[b];
-      const double *p = l->xy + 2 * bk->start;
-      int id = bk->laser * 3 + bk->kind + 1;
-      if (bk->shape == GR_SEGMENTS) {
-        size_t ns = bk->n / 2;
-        if (reserve(w, 10 + 16 * ns, e)) return e->code;
-        unsigned char *o = (unsigned char *)w->o.buf + w->o.n;
-        put_u16(o, 132);
-        put_i32(o + 2, id);
-        put_i32(o + 6, (int32_t)ns);
-        for (size_t q = 0; q < 2 * ns; q++) {
-          put_f32(o + 10 + 8 * q, p[2 * q] / u);
-          put_f32(o + 14 + 8 * q, p[2 * q + 1] / u);
-        }
-        w->o.n += 10 + 16 * ns;
-      } else {
-        if (reserve(w, 14 + 8 * bk->n, e)) return e->code;
-        unsigned char *o = (unsigned char *)w->o.buf + w->o.n;
-        put_u16(o, 130);
-        put_i32(o + 2, id);
-        put_i32(o + 6, bk->shape == GR_OPEN ? 2 : bk->dir);
-        put_i32(o + 10, (int32_t)bk->n);
-        for (size_t q = 0; q < bk->n; q++) {
-          put_f32(o + 14 + 8 * q, p[2 * q] / u);
-          put_f32(o + 18 + 8 * q, p[2 * q + 1] / u);
-        }
-        w->o.n += 14 + 8 * bk->n;
-      }
-    }
+    if (binary_layer(w, l, e)) return e->code;
   } else {
     if (putf(w, e, "$$LAYER/%.6f\n", l->z / u)) return e->code;
     for (size_t b = 0; b < l->nb; b++) {
@@ -176,4 +219,9 @@ int gr_cli_close(gr_cli_writer *w, int commit, gr_err *e) {
   free(w);
   if (!rc) rc = crc;
   return rc;
+}
+
+const char *gr_cli_form(const gr_cli_writer *w) {
+  if (!w || !w->h.binary) return "ascii";
+  return !w->shorts ? "long" : w->longs ? "short+long" : "short";
 }

@@ -34,6 +34,9 @@ typedef struct gr_cli_header {
   int nlasers;       /* labels written for lasers 1..nlasers */
   int buffered;      /* writer: 1 = through the page cache only (default 0:
                         O_DIRECT where the file system allows it) */
+  int short_form;    /* writer, binary: 1 = short commands (128, 129, 131:
+                        uint16 coordinates, values rounded to whole units)
+                        where they fit, long ones elsewhere */
   /* filled by the readers only: */
   int ovf;           /* 1: the file was an Open Vector Format job */
   long short_cmds;   /* binary short-form commands (128, 129, 131) read */
@@ -47,6 +50,9 @@ gr_cli_header gr_cli_header_defaults(void);
 typedef struct gr_cli_writer gr_cli_writer;
 gr_cli_writer *gr_cli_open(const char *path, const gr_cli_header *h, gr_err *e);
 int gr_cli_write_layer(gr_cli_writer *w, const gr_layer *l, gr_err *e);
+/* What was written so far: "ascii", "long" (binary long commands), "short"
+ * (every geometry command short) or "short+long" (some did not fit). */
+const char *gr_cli_form(const gr_cli_writer *w);
 /* commit != 0: finish and rename into place; 0: remove the temporary. Frees w. */
 int gr_cli_close(gr_cli_writer *w, int commit, gr_err *e);
 

@@ -230,7 +230,7 @@ function M.run(p, out)
   -- manifest: every build style with laser, kind, power, speed
   if out then
     gradus.yaml.save((out:gsub("%.cli$", ""):gsub("%.ovf$", "")) .. ".manifest.yaml", {
-      cli = out, format = format, units_mm = st.units, layers = st.layers, machine = machine.name,
+      cli = out, format = format, form = st.form, units_mm = st.units, layers = st.layers, machine = machine.name,
       styles = styles,
     })
   end

@@ -369,10 +369,49 @@ TEST(cli_bad_input) {
   unlink(p);
 }
 
+/* The binary short form: coordinates rounded to whole units (here 1 um), a
+ * block that does not fit 16 bits (a negative coordinate) written long. */
+TEST(cli_short_writer) {
+  char p[256];
+  tmpname(p, ".cli");
+  gr_cli_header h = gr_cli_header_defaults();
+  h.binary = 1;
+  h.short_form = 1;
+  h.layers = 1;
+  h.nlasers = 2;
+  gr_err e;
+  gr_err_clear(&e);
+  gr_cli_writer *w = gr_cli_open(p, &h, &e);
+  CHECK(w != NULL, "%s", e.msg);
+  if (!w) return;
+  gr_layer *l = sample_layer(0.04);
+  CHECK(gr_cli_write_layer(w, l, &e) == GR_OK, "%s", e.msg);
+  CHECK(!strcmp(gr_cli_form(w), "short"), "all short: %s", gr_cli_form(w));
+  gr_layer *m = gr_layer_new(0.08);
+  double neg[] = {-1, 1, 2, 2};
+  gr_layer_add(m, GR_OPEN, GR_CONTOUR, 0, 2, neg, 2);
+  CHECK(gr_cli_write_layer(w, m, &e) == GR_OK, "%s", e.msg);
+  CHECK(!strcmp(gr_cli_form(w), "short+long"), "a negative coordinate goes long: %s", gr_cli_form(w));
+  CHECK(gr_cli_close(w, 1, &e) == GR_OK, "%s", e.msg);
+  got g;
+  gr_cli_header hr;
+  CHECK(read_all(p, &g, &hr, &e) == GR_OK, "%s", e.msg);
+  CHECK(g.n == 2 && hr.short_cmds == 5, "%d layers, %ld short commands (2 layers + 3 blocks)", g.n, hr.short_cmds);
+  if (g.n == 2) {
+    same_layer(l, g.l[0], 0.0005); /* rounded to whole micrometres */
+    same_layer(m, g.l[1], 1e-6);
+  }
+  got_free(&g);
+  gr_layer_free(l);
+  gr_layer_free(m);
+  unlink(p);
+}
+
 int main(void) {
   RUN(ovf_roundtrip);
   RUN(ovf_bad_input);
   RUN(cli_every_form);
   RUN(cli_bad_input);
+  RUN(cli_short_writer);
   DONE();
 }
