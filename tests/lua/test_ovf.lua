@@ -39,7 +39,7 @@ local job = ("'%s' run '%s/recipes/lattice.lua' -q -D cells=2,1,1 -D machine='%s
   :format(exe, root, tmp)
 local ovf, cli = tmp .. "/j.ovf", tmp .. "/j.cli"
 local ok1, o1 = sh(job .. " -o '" .. ovf .. "'")
-local ok2, o2 = sh(job .. " -D format=binary -o '" .. cli .. "'")
+local ok2, o2 = sh(job .. " -D format=binary-long -o '" .. cli .. "'")
 assert(ok1 and ok2, "the job failed: " .. o1 .. o2)
 local manifest = gradus.yaml.load(tmp .. "/j.manifest.yaml")
 
@@ -203,6 +203,16 @@ t.test("gradus info, gradus cli info, gradus convert CLI -> OVF -> CLI", functio
     t.near(A.styles[i].length_mm, B.styles[i].length_mm, 1e-3, "length of id " .. A.styles[i].id)
   end
   same_layers(gradus.cli.read(cli).layers, gradus.cli.read(c2).layers, 2e-6, "cli -> ovf -> cli")
+end)
+
+t.test("format=binary: the short form where the part fits, said by the manifest, within half a unit", function()
+  local short = tmp .. "/s.cli"
+  local ok, out = sh(job .. " -D format=binary -o '" .. short .. "'")
+  t.ok(ok, out)
+  t.eq(gradus.yaml.load(tmp .. "/s.manifest.yaml").form, "short", "manifest form")
+  t.eq(gradus.yaml.load(tmp .. "/j.manifest.yaml").form, "long", "binary-long: long form")
+  t.eq(gradus.info(short).format, "binary-short", "info sees the short commands")
+  same_layers(gradus.cli.read(cli).layers, gradus.cli.read(short).layers, 0.0005 + 1e-6, "long vs short (1 um units)")
 end)
 
 t.test("malformed files: error with file and byte offset, non-zero exit, nothing written", function()
