@@ -1,15 +1,16 @@
 # Gradus build. `make` builds build/gradus and build/gradus.so; `make test`
 # and `make demo` first install missing Debian packages (as root).
-PKGS      := lua5.4 yaml-0.1 readline libpng libmicrohttpd
+PKGS      := lua5.4 yaml-0.1 readline libpng libmicrohttpd libprotobuf-c nettle
 DEB_PKGS  := gcc make pkg-config liblua5.4-dev lua5.4 libyaml-dev libreadline-dev libpng-dev \
-             libmicrohttpd-dev chromium curl clang libclang-rt-14-dev slurm-wlm munge
+             libmicrohttpd-dev chromium curl clang libclang-rt-14-dev slurm-wlm munge \
+             protobuf-c-compiler libprotobuf-c-dev protobuf-compiler nettle-dev
 CC        ?= cc
 CSTD      := -std=c11 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE
 WARN      := -Wall -Wextra
 PKG_CFLAGS = $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 PKG_LIBS   = $(shell pkg-config --libs $(PKGS) 2>/dev/null)
 CFLAGS    ?= -O2 -g
-ALL_CFLAGS = $(CSTD) $(WARN) $(CFLAGS) -fPIC -pthread -Iengine $(PKG_CFLAGS)
+ALL_CFLAGS = $(CSTD) $(WARN) $(CFLAGS) -fPIC -pthread -Iengine -Ibuild/gen $(PKG_CFLAGS)
 LIBS       = $(PKG_LIBS) -lm -pthread -ldl
 FUZZ_CC   ?= clang
 FUZZ_HAVE := $(shell command -v $(FUZZ_CC) >/dev/null 2>&1 && echo yes)
@@ -18,10 +19,12 @@ SAN        = -O1 -g -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sa
 ALL_SRC   := $(wildcard engine/*.c)
 CORE_SRC  := $(filter-out engine/bind%.c engine/main.c,$(ALL_SRC))
 BIND_SRC  := $(filter engine/bind%.c,$(ALL_SRC))
-HDRS      := $(wildcard engine/*.h)
-CORE_OBJ  := $(CORE_SRC:engine/%.c=build/obj/%.o)
+# OVF messages: engine/ovf/ovf.proto compiled by protoc-c into build/gen
+GEN_HDR   := build/gen/ovf.pb-c.h
+HDRS      := $(wildcard engine/*.h) $(GEN_HDR)
+CORE_OBJ  := $(CORE_SRC:engine/%.c=build/obj/%.o) build/obj/ovf.pb-c.o
 BIND_OBJ  := $(BIND_SRC:engine/%.c=build/obj/%.o)
-SAN_OBJ   := $(CORE_SRC:engine/%.c=build/asan/obj/%.o)
+SAN_OBJ   := $(CORE_SRC:engine/%.c=build/asan/obj/%.o) build/asan/obj/ovf.pb-c.o
 SAN_BIND  := $(BIND_SRC:engine/%.c=build/asan/obj/%.o) build/asan/obj/main.o
 CTESTS    := $(patsubst tests/c/%.c,%,$(wildcard tests/c/test_*.c))
 
@@ -43,6 +46,13 @@ check-deps:
 build/obj/%.o: engine/%.c $(HDRS) | build/obj
 	$(CC) $(ALL_CFLAGS) -c $< -o $@
 build/asan/obj/%.o: engine/%.c $(HDRS) | build/asan/obj
+	$(CC) $(ALL_CFLAGS) $(SAN) -c $< -o $@
+build/gen/ovf.pb-c.c build/gen/ovf.pb-c.h: engine/ovf/ovf.proto
+	@mkdir -p build/gen
+	protoc-c --c_out=build/gen -Iengine/ovf $<
+build/obj/ovf.pb-c.o: build/gen/ovf.pb-c.c $(GEN_HDR) | build/obj
+	$(CC) $(ALL_CFLAGS) -c $< -o $@
+build/asan/obj/ovf.pb-c.o: build/gen/ovf.pb-c.c $(GEN_HDR) | build/asan/obj
 	$(CC) $(ALL_CFLAGS) $(SAN) -c $< -o $@
 build/obj build/asan/obj build/tests build/asan/tests:
 	mkdir -p $@
@@ -93,13 +103,15 @@ build/bench/%: bench/%.c $(CORE_OBJ)
 FUZZ_SECONDS ?= 60
 FUZZ_SAN      = -g -O1 -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=undefined
 FUZZERS      := $(patsubst tests/fuzz/fuzz_%.c,%,$(wildcard tests/fuzz/fuzz_*.c))
-FUZZ_OBJ     := $(CORE_SRC:engine/%.c=build/fuzz/obj/%.o) $(BIND_SRC:engine/%.c=build/fuzz/obj/%.o)
+FUZZ_OBJ     := $(CORE_SRC:engine/%.c=build/fuzz/obj/%.o) $(BIND_SRC:engine/%.c=build/fuzz/obj/%.o) build/fuzz/obj/ovf.pb-c.o
 build/fuzz/obj:
 	mkdir -p $@
 build/fuzz/obj/%.o: engine/%.c $(HDRS) | build/fuzz/obj
-	$(FUZZ_CC) $(CSTD) $(WARN) $(FUZZ_SAN) -fsanitize=fuzzer-no-link -pthread -Iengine $(PKG_CFLAGS) -c $< -o $@
+	$(FUZZ_CC) $(CSTD) $(WARN) $(FUZZ_SAN) -fsanitize=fuzzer-no-link -pthread -Iengine -Ibuild/gen $(PKG_CFLAGS) -c $< -o $@
+build/fuzz/obj/ovf.pb-c.o: build/gen/ovf.pb-c.c $(GEN_HDR) | build/fuzz/obj
+	$(FUZZ_CC) $(CSTD) $(WARN) $(FUZZ_SAN) -fsanitize=fuzzer-no-link -pthread -Iengine -Ibuild/gen $(PKG_CFLAGS) -c $< -o $@
 build/fuzz/fuzz_%: tests/fuzz/fuzz_%.c $(FUZZ_OBJ)
-	$(FUZZ_CC) $(CSTD) $(WARN) $(FUZZ_SAN) -fsanitize=fuzzer -pthread -Iengine $(PKG_CFLAGS) -o $@ $< $(FUZZ_OBJ) $(LIBS)
+	$(FUZZ_CC) $(CSTD) $(WARN) $(FUZZ_SAN) -fsanitize=fuzzer -pthread -Iengine -Ibuild/gen $(PKG_CFLAGS) -o $@ $< $(FUZZ_OBJ) $(LIBS)
 fuzz-build: $(FUZZERS:%=build/fuzz/fuzz_%)
 fuzz: check-deps fuzz-build
 	@bash tests/fuzz/run.sh $(FUZZ_SECONDS) $(FUZZERS)

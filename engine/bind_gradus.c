@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "bind.h"
+#include "bind_ovf.h"
 #include "version.h"
 
 /* Where the tree is: two levels above the file holding this function. */
@@ -50,6 +51,7 @@ int luaopen_gradus(lua_State *L) {
   gr_open_hatch(L);
   gr_open_io(L);
   gr_open_clicat(L);
+  gr_open_ovf(L);
   gr_open_yaml(L);
   gr_open_fs(L);
   gr_open_place(L);

@@ -13,6 +13,7 @@
 #include "bind.h"
 #include "interrupt.h"
 #include "cli.h"
+#include "bind_ovf.h"
 #include "kb.h"
 #include "place.h"
 
@@ -245,6 +246,7 @@ static int l_layers(lua_State *L) {
 /* ---- run ---- */
 typedef struct sinkctx {
   gr_cli_writer *w[GR_MAX_LASERS + 1]; /* [0] all, or one per laser when split */
+  gr_ovf_writer *ovf;  /* format "ovf": instead of w[] */
   int split, nlasers;
   gr_layer *tmp;
   int *keep;           /* layer numbers to keep */
@@ -274,6 +276,7 @@ static int sink(void *ud, int g, const gr_layer *l, gr_err *e) {
     }
   }
   if (rc == GR_OK && s->w[0]) rc = gr_cli_write_layer(s->w[0], l, e);
+  if (rc == GR_OK && s->ovf) rc = gr_ovf_write_layer(s->ovf, l, NULL, e);
   s->t_write += gr_now() - t0;
   for (int i = 0; i < s->nkeep && rc == GR_OK; i++)
     if (s->keep[i] == g && !s->kept[i]) {
@@ -432,9 +435,9 @@ static int l_run(lua_State *L) {
   luaL_checktype(L, 2, LUA_TTABLE);
   const char *out = gr_opt_string(L, 2, "output", NULL);
   const char *format = gr_opt_string(L, 2, "format", "ascii");
-  if (strcmp(format, "ascii") && strcmp(format, "binary"))
-    return luaL_error(L, "bad option 'format' (ascii or binary, got '%s')", format);
-  int binary = !strcmp(format, "binary");
+  if (strcmp(format, "ascii") && strcmp(format, "binary") && strcmp(format, "binary-long") && strcmp(format, "ovf"))
+    return luaL_error(L, "bad option 'format' (ascii, binary, binary-long or ovf, got '%s')", format);
+  int binary = !strncmp(format, "binary", 6);
   gr_job_run_opts r;
   memset(&r, 0, sizeof r);
   r.direct = gr_opt_boolean(L, 2, "direct", 0);
@@ -508,6 +511,9 @@ static int l_run(lua_State *L) {
     h.lo[a] = o->origin[a];
     h.hi[a] = o->origin[a] + o->n[a] * o->cell;
   }
+  /* binary: the short form (16-bit coordinates) when the part's box fits at the unit */
+  h.short_form = !strcmp(format, "binary");
+  for (int a = 0; a < 3; a++) h.short_form &= h.lo[a] >= 0 && h.hi[a] / h.units <= 65535;
   int rc = GR_OK;
   gr_kb *kb = NULL;
   if (kbdir[0] && !r.direct) {
@@ -515,7 +521,10 @@ static int l_run(lua_State *L) {
     if (!kb) rc = e.code ? e.code : GR_EIO;
     else sweep_kb(kb);
   }
-  if (rc == GR_OK && out) {
+  if (rc == GR_OK && out && !strcmp(format, "ovf")) {
+    s.ovf = gr_lua_ovf_open(L, 2, outs[0], o, h.layers, &e); /* one file: the lasers are inside */
+    if (!s.ovf) rc = e.code ? e.code : GR_EIO;
+  } else if (rc == GR_OK && out) {
     s.w[0] = gr_cli_open(outs[0], &h, &e);
     if (!s.w[0]) rc = e.code ? e.code : GR_EIO;
     for (int la = 0; s.split && rc == GR_OK && la < o->nlasers; la++) {
@@ -530,11 +539,19 @@ static int l_run(lua_State *L) {
     rc = gr_job_run(j, &r, &e);
   }
   /* commit every writer only if everything went well; else remove temporaries */
+  const char *form = s.ovf ? "ovf" : s.w[0] ? gr_cli_form(s.w[0]) : NULL;
   for (int w = 0; w <= GR_MAX_LASERS; w++) {
     if (!s.w[w]) continue;
     gr_err e2;
     gr_err_clear(&e2);
     int crc = gr_cli_close(s.w[w], rc == GR_OK, &e2);
+    if (rc == GR_OK && crc) { rc = crc; e = e2; }
+  }
+  if (s.ovf) {
+    gr_err e2;
+    gr_err_clear(&e2);
+    gr_ovf_set_volume(s.ovf, gr_job_get_stats(j)->solid_area * o->layer);
+    int crc = gr_ovf_close(s.ovf, rc == GR_OK, &e2);
     if (rc == GR_OK && crc) { rc = crc; e = e2; }
   }
   gr_kb_close(kb);
@@ -550,6 +567,10 @@ static int l_run(lua_State *L) {
     return gr_lua_error(L, &e);
   }
   push_stats(L, j, &s, h.units);
+  if (form) { /* what the output holds: ascii, long, short, short+long, ovf */
+    lua_pushstring(L, form);
+    lua_setfield(L, -2, "form");
+  }
   lua_newtable(L);
   for (int i = 0; i < nkeep; i++) {
     if (!s.kept[i]) continue;

@@ -22,13 +22,11 @@
 #define GR_KB_H
 #include "common.h"
 #include "paths.h"
+#include <nettle/sha2.h>
 
-/* ---- SHA-256 (FIPS 180-4) ---- */
+/* ---- SHA-256 (FIPS 180-4), computed by nettle ---- */
 typedef struct gr_sha256 {
-  uint32_t h[8];         /* chaining state */
-  uint64_t len;          /* bytes hashed so far */
-  unsigned char buf[64]; /* pending partial block */
-  size_t nbuf;           /* bytes in buf */
+  struct sha256_ctx ctx; /* nettle's state */
 } gr_sha256;
 void gr_sha256_init(gr_sha256 *s);
 void gr_sha256_update(gr_sha256 *s, const void *data, size_t n);

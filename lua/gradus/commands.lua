@@ -1,4 +1,5 @@
--- gradus.commands: the sub-commands `gradus cli ...`, `gradus kb ...` and
+-- gradus.commands: the sub-commands `gradus info`, `gradus convert`,
+-- `gradus cli ...`, `gradus kb ...` and
 -- `gradus sweep ...`. Each takes the whole argument list and returns an exit
 -- status.
 local gradus = require "gradus"
@@ -8,17 +9,49 @@ local function eprint(...) io.stderr:write(table.concat({ ... }, " "), "\n") end
 
 local function fmt_len(mm) return string.format("%.3f m", mm / 1000) end
 
---- gradus cli info FILE: what a CLI file holds; gradus cli cat: gradus.slurm.
+--- gradus info FILE: what a CLI or OVF file holds (gradus.info, printed as YAML).
+function M.info(args)
+  local path = args[2]
+  if not path or args[3] then
+    eprint("usage: gradus info FILE   (a CLI or OVF file)")
+    return 2
+  end
+  local ok, info = pcall(gradus.info, path)
+  if not ok then eprint("gradus: " .. tostring(info)) return 1 end
+  print(gradus.yaml.encode(info))
+  return 0
+end
+
+--- gradus cli info FILE: the same as gradus info FILE; gradus cli cat: gradus.slurm.
 function M.cli(args)
-  local sub, path = args[2], args[3]
-  if sub == "cat" then return require("gradus.slurm").cat_cmd(args) end
-  if sub ~= "info" or not path then
+  if args[2] == "cat" then return require("gradus.slurm").cat_cmd(args) end
+  if args[2] ~= "info" or not args[3] or args[4] then
     eprint("usage: gradus cli info FILE | cat PART.cli... -o FILE [--stats FILE]")
     return 2
   end
-  local ok, info = pcall(gradus.cli.info, path)
-  if not ok then eprint("gradus: " .. tostring(info)) return 1 end
-  print(gradus.yaml.encode(info))
+  return M.info({ "info", args[3] })
+end
+
+--- gradus convert IN OUT [--format ascii|binary|ovf]: the format from OUT's
+-- extension (.cli binary, .ovf) unless given.
+function M.convert(args)
+  local pos, format, i = {}, nil, 2
+  while i <= #args do
+    if args[i] == "--format" then
+      format = args[i + 1]
+      if not format then eprint("gradus: --format needs a value (ascii, binary or ovf)") return 2 end
+      i = i + 2
+    else
+      pos[#pos + 1] = args[i]
+      i = i + 1
+    end
+  end
+  if #pos ~= 2 then
+    eprint("usage: gradus convert IN OUT [--format ascii|binary|ovf]")
+    return 2
+  end
+  local ok, err = pcall(gradus.convert, pos[1], pos[2], { format = format })
+  if not ok then eprint("gradus: " .. tostring(err)) return 1 end
   return 0
 end
 

@@ -10,9 +10,11 @@ usage: gradus run RECIPE [-D name=value]... [-o OUTPUT] [--stats FILE] [-q] [--a
        gradus sweep RECIPE -D name=v1,v2,... -D other=a:b:step [-j N] [-o DIR]
        gradus run RECIPE ... -o FILE --slurm N   N layer ranges as a Slurm array (doc/cluster.md)
        gradus sweep ... --slurm [--partition P] [--time T] [--mem M] [--max-tasks N]
-       gradus cli info FILE        layers, bounds, counts and lengths of a CLI file
-       gradus view FILE [-o HTML]  the layers in a browser page (--serve [--port N]: over HTTP)
+       gradus info FILE            layers, z range, blocks, vectors and lengths of a CLI or OVF file
+       gradus convert IN OUT [--format ascii|binary|ovf]   CLI <-> OVF (format from OUT's extension)
+       gradus cli info FILE        the same as gradus info FILE
        gradus cli cat PART.cli... -o FILE [--stats FILE]   merge layer-range parts
+       gradus view FILE [-o HTML]  the layers in a browser page (--serve [--port N]: over HTTP)
        gradus kb list|show KEY|verify|prune [--dir DIR]
        gradus                      interactive Lua prompt with gradus loaded
        gradus --version | help

@@ -266,8 +266,17 @@ local function run(p, out)
   local kb = p.kb
   if kb == "" then kb = nil end
   if out then gradus.mkdir(gradus.dirname(out)) end
+  local format = (out and out:lower():match("%.ovf$")) and "ovf" or p.format
+  local styles = {}
+  for l, las in ipairs(machine.lasers) do
+    for kindi, kind in ipairs({ "contour", "hatch", "edge" }) do
+      styles[#styles + 1] = { id = (l - 1) * 3 + kindi, label = las.name .. "-" .. kind, laser = las.name,
+        kind = kind, power = las[kind].power, speed = las[kind].speed, jump_speed = machine.jump_speed }
+    end
+  end
   local st, kept = job:run {
-    output = out, format = p.format, kb = kb ~= "off" and (kb or true) or false,
+    output = out, format = format, styles = styles, name = out and out:match("([^/]+)$"),
+    jump_delay = machine.jump_delay, polygon_delay = machine.polygon_delay, kb = kb ~= "off" and (kb or true) or false,
     direct = kb == "off", first = first, last = last, keep = keep, split = p.split,
     quiet = gradus.quiet(), qualify = type(p.qualify) == "function" and p.qualify or nil,
   }
@@ -277,15 +286,8 @@ local function run(p, out)
   end
   -- manifest: every build style with laser, kind, power, speed
   if out then
-    local styles = {}
-    for l, las in ipairs(machine.lasers) do
-      for kindi, kind in ipairs({ "contour", "hatch", "edge" }) do
-        styles[#styles + 1] = { id = (l - 1) * 3 + kindi, label = las.name .. "-" .. kind, laser = las.name,
-          kind = kind, power = las[kind].power, speed = las[kind].speed }
-      end
-    end
-    gradus.yaml.save((out:gsub("%.cli$", "")) .. ".manifest.yaml", {
-      cli = out, format = p.format, units_mm = st.units, layers = st.layers, machine = machine.name,
+    gradus.yaml.save((out:gsub("%.cli$", ""):gsub("%.ovf$", "")) .. ".manifest.yaml", {
+      cli = out, format = format, form = st.form, units_mm = st.units, layers = st.layers, machine = machine.name,
       styles = styles,
     })
   end

@@ -30,6 +30,9 @@ job "gyroid sheet, verified templates, knowledge base, 2 lasers, binary" \
 job "the same from the knowledge base, ASCII" \
   $G run recipes/lattice.lua -D cells=3,2,1 -D surface=gyroid -D kb="$d/kb" -D lasers=2 -o "$d/b.cli" -q
 job "cli info of both" sh -c "'$G' cli info '$d/a.cli' && '$G' cli info '$d/b.cli'"
+job "the same as OVF, info, convert OVF -> CLI -> OVF" \
+  sh -c "'$G' run recipes/lattice.lua -D cells=3,2,1 -D surface=gyroid -D kb='$d/kb' -D lasers=2 -o '$d/b.ovf' -q &&
+         '$G' info '$d/b.ovf' >/dev/null && '$G' convert '$d/b.ovf' '$d/o.cli' && '$G' convert '$d/o.cli' '$d/o.ovf'"
 job "trimmed sphere domain with skin, islands, direct" \
   $G run recipes/lattice.lua -D cells=2,2,2 -D kb=off -D "domain=(x-2)^2+(y-2)^2+(z-2)^2-3" -D skin=0.2 \
   -D pattern=island -D layers=20:40 -o "$d/c.cli" -q
