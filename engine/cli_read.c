@@ -8,6 +8,7 @@
 #include "cli.h"
 #include "ovf.h"
 #include <errno.h>
+#include <limits.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
