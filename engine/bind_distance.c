@@ -36,6 +36,7 @@ static int l_offset(lua_State *L) {
   memcpy(o.box_lo, lo, sizeof lo);
   memcpy(o.box_hi, hi, sizeof hi);
   o.margin = gr_opt_number(L, 1, "margin", 0.2);
+  o.voxel = gr_opt_boolean(L, 1, "voxel", 0); /* u, v, w relative to the voxel [lo, lo + cell] */
   o.res = gr_opt_integer(L, 1, "res", 40);
   lua_getfield(L, 1, "thickness");
   if (lua_type(L, -1) == LUA_TNUMBER) {

@@ -618,6 +618,8 @@ static void push_entry(lua_State *L, const char *key, const char *sig, size_t by
   lua_setfield(L, -2, "key");
   lua_pushstring(L, sig ? sig : "");
   lua_setfield(L, -2, "signature");
+  lua_pushboolean(L, gr_kb_stale(sig));
+  lua_setfield(L, -2, "stale");
   set_int(L, "bytes", (long long)bytes);
   lua_pushboolean(L, qualified);
   lua_setfield(L, -2, "qualified");

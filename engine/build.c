@@ -30,32 +30,56 @@ static gr_field *skin_field(gr_field *d, double s) {
   return f;
 }
 
-/* The graded field of voxel v (offset field of its spec, with H meshed over
- * the voxel grown by a margin), intersected with the domain when trimmed. */
-static gr_field *voxel_field(gr_job *j, int v, int trimmed, gr_field *like, const double shift[3],
-                             double extra, gr_err *e) {
+/* Offset options of spec s for the voxel with min corner o (u, v, w
+ * relative to that voxel), H meshed over it grown by a margin (+ extra, mm). */
+static gr_offset_opts offset_opts(const gr_job *j, const gr_spec *s, gr_field *phi, const double o[3], double extra) {
+  gr_offset_opts oo = gr_offset_defaults();
+  oo.surface = phi;
+  oo.cell = j->o.cell;
+  for (int a = 0; a < 3; a++) oo.origin[a] = j->o.origin[a];
+  for (int a = 0; a < 3; a++) oo.box_lo[a] = o[a];
+  for (int a = 0; a < 3; a++) oo.box_hi[a] = o[a] + j->o.cell;
+  oo.voxel = 1;
+  oo.margin = j->o.beam_offset + (j->o.contours + 2) * j->o.hatch + 4 * j->o.slice_cell + extra;
+  oo.res = j->o.res;
+  oo.kind = s->network ? GR_OFFSET_NETWORK : GR_OFFSET_SHEET;
+  oo.side = s->side;
+  oo.mode = j->o.exact ? GR_DIST_EXACT : GR_DIST_MESH;
+  return oo;
+}
+
+/* The canonical field of a group of classes sharing closest points: H of
+ * class c's surface over the grid's first voxel (the origin), grown by three
+ * quarters of a cell so that it serves every member's window (T <= L/2);
+ * thickness 0. It depends on the group's key only, never on which classes
+ * are built with it: templates stay pure functions of their keys. */
+static gr_field *canon_field(gr_job *j, int c, gr_err *e) {
+  const gr_spec *s = &j->specs[j->vspec[j->cls[c].rep]];
+  gr_field *phi = gr_field_tpms(gr_tpms_name(s->surface), j->o.cell, j->o.origin, s->level, e);
+  if (!phi) return NULL;
+  gr_offset_opts oo = offset_opts(j, s, phi, j->o.origin, 0.75 * j->o.cell);
+  oo.thickness = 0;
+  gr_field *g = gr_offset_field_new(&oo, e);
+  gr_field_free(phi);
+  return g;
+}
+
+/* The graded field of voxel v (offset field of its spec, u, v, w relative to
+ * v, H meshed over the voxel grown by a margin or shared with `like` shifted
+ * by `shift`), intersected with the domain when trimmed. */
+static gr_field *voxel_field(gr_job *j, int v, int trimmed, gr_field *like, const double shift[3], gr_err *e) {
   const gr_spec *s = &j->specs[j->vspec[v]];
   double o[3];
   gr_grid_origin(&j->grid, v, o);
   gr_field *phi = gr_field_tpms(gr_tpms_name(s->surface), j->o.cell, j->o.origin, s->level, e);
   if (!phi) return NULL;
-  gr_offset_opts oo = gr_offset_defaults();
-  oo.surface = phi;
-  oo.cell = j->o.cell;
+  gr_offset_opts oo = offset_opts(j, s, phi, o, 0);
   oo.like = like;
   for (int a = 0; a < 3 && like; a++) oo.like_shift[a] = shift[a];
-  for (int a = 0; a < 3; a++) oo.origin[a] = j->o.origin[a];
-  for (int a = 0; a < 3; a++) oo.box_lo[a] = o[a];
-  for (int a = 0; a < 3; a++) oo.box_hi[a] = o[a] + j->o.cell;
-  oo.margin = j->o.beam_offset + (j->o.contours + 2) * j->o.hatch + 4 * j->o.slice_cell + extra;
-  oo.res = j->o.res;
-  oo.thickness_expr = j->specs[j->vspec[v]].thickness;
+  oo.thickness_expr = s->thickness;
   oo.inside_expr = s->inside[0] ? s->inside : NULL;
   oo.density = s->density;
   if (s->target) oo.thickness_expr = NULL, oo.thickness_field = s->target;
-  oo.kind = s->network ? GR_OFFSET_NETWORK : GR_OFFSET_SHEET;
-  oo.side = s->side;
-  oo.mode = j->o.exact ? GR_DIST_EXACT : GR_DIST_MESH;
   gr_field *g = gr_offset_field_new(&oo, e);
   gr_field_free(phi);
   if (!g) return NULL;
@@ -129,22 +153,23 @@ static int prepare_item(void *arg_, int item, gr_err *e) {
   return GR_OK;
 }
 
-/* Phase 1b, per class to build: its field, sharing H with its group's
- * reference class (fref >= 0, whose field exists) or its own. */
+/* Phase 1b, per field item: a group's canonical field (fkind 1), a class's
+ * own field (0), or a group member's field sharing the canonical H (2). */
 static int field_item(void *arg_, int item, gr_err *e) {
   gr_build *a = arg_;
   gr_job *j = a->j;
-  int c = a->fc[item], ref = a->fref[item];
-  gr_vclass *cl = &j->cls[c];
-  double o[3], oref[3], sh[3] = {0, 0, 0};
-  if (ref >= 0) {
-    gr_grid_origin(&j->grid, cl->rep, o);
-    gr_grid_origin(&j->grid, j->cls[ref].rep, oref);
-    for (int k = 0; k < 3; k++) sh[k] = o[k] - oref[k];
+  int c = a->fc[item], g = a->fref[item];
+  if (a->fkind[item] == 1) {
+    a->gfield[g] = canon_field(j, c, e);
+    return a->gfield[g] ? GR_OK : (e->code ? e->code : GR_EMEM);
   }
-  /* a reference's H reaches a quarter cell further, for thicker members */
-  cl->field = voxel_field(j, cl->rep, cl->trimmed, ref >= 0 ? j->cls[ref].field : NULL, sh,
-                          a->fextra[item], e);
+  gr_vclass *cl = &j->cls[c];
+  double o[3], sh[3] = {0, 0, 0};
+  if (a->fkind[item] == 2) {
+    gr_grid_origin(&j->grid, cl->rep, o);
+    for (int k = 0; k < 3; k++) sh[k] = o[k] - j->o.origin[k];
+  }
+  cl->field = voxel_field(j, cl->rep, cl->trimmed, a->fkind[item] == 2 ? a->gfield[g] : NULL, sh, e);
   if (!cl->field) return e->code ? e->code : GR_EMEM;
   const char *w = gr_offset_warning(cl->field);
   if (w[0]) {
@@ -250,19 +275,23 @@ static int make_work(gr_build *a, const int *cs, int nc, gr_err *e) {
   return GR_OK;
 }
 
-/* The shared closest points of the group cs[0..nc) (cs[0] the reference). */
-static gr_cptab *make_table(gr_build *a, const int *cs, int nc, gr_err *e) {
+/* The shared closest points of the group of class c (canonical field g):
+ * over one period of the slice grid at the grid's first voxel, layers at the
+ * group's z-phase, every node within L/2 (the largest T) of H. Depends on
+ * the group's key only. */
+static gr_cptab *make_table(gr_build *a, int c, gr_field *g, gr_err *e) {
   gr_job *j = a->j;
-  const gr_vclass *cl = &j->cls[cs[0]];
-  double oref[3], tmax = 0;
+  const gr_vclass *cl = &j->cls[c];
+  double o[3];
   int i, jj, k;
-  gr_grid_origin(&j->grid, cl->rep, oref);
+  gr_grid_origin(&j->grid, cl->rep, o);
   gr_grid_ijk(&j->grid, cl->rep, &i, &jj, &k);
-  for (int q = 0; q < nc; q++) tmax = fmax(tmax, gr_offset_max_thickness(j->cls[cs[q]].field));
+  double phase = gr_grid_mid(&j->grid, gr_grid_row_first(&j->grid, k)) - o[2];
+  double z0 = j->o.origin[2] + round(phase / 1e-9) * 1e-9 + cl->t->j0 * j->o.layer;
   /* nodes of crossing edges lie within T + h of H; beyond, only signs matter */
-  double dmax = 1.2 * tmax + 2 * j->o.slice_cell;
-  gr_cptab *t = gr_cptab_new(&j->grid, j->o.slice_cell, gr_tmpl_window(&j->o), cl->field, oref,
-                             gr_grid_row_first(&j->grid, k) + cl->t->j0, cl->t->nl, dmax, e);
+  double dmax = 0.6 * j->o.cell + 2 * j->o.slice_cell;
+  gr_cptab *t = gr_cptab_new(j->o.cell, j->o.slice_cell, gr_tmpl_window(&j->o), g, j->o.origin, z0, j->o.layer,
+                             cl->t->nl, dmax, e);
   if (!t) return NULL;
   a->tab = t;
   if (gr_pool_for(cl->t->nl, table_item, a, j->o.threads, NULL, NULL, "closest points", e)) {
@@ -288,11 +317,12 @@ int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, g
   int n = a->nitems;
   /* groups: gid[q] = index (into items) of the group's first class, -1 = none */
   int *cs = malloc((n + 1) * sizeof *cs), *gid = malloc((n + 1) * sizeof *gid);
-  a->fc = malloc((n + 1) * sizeof *a->fc);
-  a->fref = malloc((n + 1) * sizeof *a->fref);
-  a->fextra = malloc((n + 1) * sizeof *a->fextra);
+  a->fc = malloc(2 * (n + 1) * sizeof *a->fc);
+  a->fref = malloc(2 * (n + 1) * sizeof *a->fref);
+  a->fkind = malloc(2 * (n + 1) * sizeof *a->fkind);
+  a->gfield = calloc(n + 1, sizeof *a->gfield);
   char (*keys)[128] = malloc((n + 1) * sizeof *keys);
-  if (!cs || !gid || !a->fc || !a->fref || !a->fextra || !keys) rc = rc ? rc : gr_fail(e, GR_EMEM, "out of memory");
+  if (!cs || !gid || !a->fc || !a->fref || !a->fkind || !a->gfield || !keys) rc = rc ? rc : gr_fail(e, GR_EMEM, "out of memory");
   long total = 0, base = 0;
   for (int q = 0; q < n && rc == GR_OK; q++) {
     gid[q] = -1;
@@ -304,17 +334,16 @@ int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, g
       if (gid[p] == p && strcmp(keys[p], keys[q]) == 0) gid[q] = p;
     if (gid[q] < 0) gid[q] = q;
   }
-  /* fields: group references and unshared classes, then the members */
+  /* fields: the groups' canonical fields and unshared classes, then the members */
   for (int pass = 0; pass < 2 && rc == GR_OK; pass++) {
     int nf = 0;
     for (int q = 0; q < n; q++) {
       if (!j->cls[a->items[q]].need) continue;
-      int member = gid[q] >= 0 && gid[q] != q;
-      if (member != pass) continue;
+      if (pass == 0 && gid[q] == q) { a->fc[nf] = a->items[q]; a->fref[nf] = q; a->fkind[nf++] = 1; }
+      if ((gid[q] >= 0) != pass) continue;
       a->fc[nf] = a->items[q];
-      a->fref[nf] = member ? a->items[gid[q]] : -1;
-      a->fextra[nf] = gid[q] == q ? 0.25 * j->o.cell : 0;
-      nf++;
+      a->fref[nf] = gid[q];
+      a->fkind[nf++] = pass ? 2 : 0;
     }
     rc = gr_pool_for(nf, field_item, a, j->o.threads, NULL, NULL, stage, e);
   }
@@ -326,7 +355,7 @@ int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, g
       for (int p = q; p < n; p++)
         if (gid[p] == q) cs[nc++] = a->items[p];
     gr_cptab *t = NULL;
-    if (gid[q] >= 0 && !(t = make_table(a, cs, nc, e))) { rc = e->code ? e->code : GR_EMEM; break; }
+    if (gid[q] >= 0 && !(t = make_table(a, a->items[q], a->gfield[q], e))) { rc = e->code ? e->code : GR_EMEM; break; }
     a->tab = t;
     long nl = 0;
     for (int p = 0; p < nc; p++) nl += j->cls[cs[p]].t->nl;
@@ -340,9 +369,11 @@ int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, g
   }
   free(keys);
   free(gid);
-  free(a->fc); free(a->fref); free(a->fextra);
-  a->fc = a->fref = NULL;
-  a->fextra = NULL;
+  for (int q = 0; q < n && a->gfield; q++) gr_field_free(a->gfield[q]);
+  free(a->gfield);
+  free(a->fc); free(a->fref); free(a->fkind);
+  a->fc = a->fref = a->fkind = NULL;
+  a->gfield = NULL;
   free(cs);
   gr_err e2;
   gr_err_clear(&e2);

@@ -30,8 +30,8 @@ typedef struct gr_build {
   int *wc, *wa, *wb;       /* work items: class, template layers [wa, wb) */
   int nwork;
   gr_cptab *tab;           /* shared closest points of the classes in work, or NULL */
-  int *fc, *fref;          /* field items: class, reference class or -1 */
-  double *fextra;          /* field items: extra margin of H, mm */
+  int *fc, *fref, *fkind;  /* field items: class, its group (index into items) or -1, kind */
+  gr_field **gfield;       /* per group head (index into items): the canonical field */
 } gr_build;
 
 /* Build (or load) the templates of the classes in a->items; progress via r

@@ -96,7 +96,7 @@ static char *voxel_signature(gr_job *j, int v, gr_err *e) {
   double phase = gr_grid_mid(&j->grid, g0) - o[2];
   size_t len = (size_t)snprintf(
       sig, cap,
-      "{gradus_template: 1, surface: %s, L: %.9g, level: %.9g, kind: %s, side: %d, "
+      GR_TEMPLATE_GEOMETRY " surface: %s, L: %.9g, level: %.9g, kind: %s, side: %d, "
       "phase: %.9g, layers: %d, t: %.9g, d: %.9g, b: %.9g, contours: %d, cell: %.9g, res: %d, "
       "mode: %s, quant: %.9g, T: [",
       gr_tpms_name(s->surface), L, s->level, s->network ? "network" : "sheet", s->side,

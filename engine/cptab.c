@@ -18,16 +18,16 @@ int gr_cptab_period(double cell, double h) {
   return P <= 32768 && fabs(P - round(P)) < 1e-9 * P && round(P) >= 2 ? (int)round(P) : 0;
 }
 
-gr_cptab *gr_cptab_new(const gr_grid *grid, double h, double margin, const gr_field *ref, const double oref[3],
-                       int g0, int nl, double dmax, gr_err *e) {
+gr_cptab *gr_cptab_new(double cell, double h, double margin, const gr_field *ref, const double oref[3], double z0,
+                       double t_layer, int nl, double dmax, gr_err *e) {
   gr_cptab *t = calloc(1, sizeof *t);
   if (!t) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
-  t->P = gr_cptab_period(grid->cell, h);
+  t->P = gr_cptab_period(cell, h);
   t->nl = nl;
-  t->g0 = g0;
+  t->z0 = z0;
+  t->t = t_layer;
   t->h = h;
-  t->cell = grid->cell;
-  t->grid = grid;
+  t->cell = cell;
   t->field = ref;
   for (int a = 0; a < 3; a++) t->oref[a] = oref[a];
   t->lo[0] = t->oref[0] - margin;
@@ -44,7 +44,7 @@ int gr_cptab_layer(gr_cptab *t, int q, gr_err *e) {
   size_t n = (size_t)t->P * t->P;
   double *x = malloc(3 * n * sizeof *x);
   if (!x) return gr_fail(e, GR_EMEM, "out of memory");
-  double *y = x + n, *z = x + 2 * n, zq = gr_grid_mid(t->grid, t->g0 + q);
+  double *y = x + n, *z = x + 2 * n, zq = t->z0 + q * t->t;
   for (int b = 0; b < t->P; b++)
     for (int a = 0; a < t->P; a++) {
       x[a + (size_t)t->P * b] = t->lo[0] + a * t->h;

@@ -8,34 +8,32 @@
  * instead of searching the mesh. Mesh mode's H depends on the voxel's box, so
  * only exact mode shares.
  *
- * Takes: the group's reference field (its H), the reference voxel's corner,
- * the slice grid (spacing h, window corner) and the template's layers. Gives:
+ * Takes: a reference field (its H), the reference voxel's corner, the slice
+ * grid (spacing h, window corner) and the layers' heights. Gives:
  * per template layer, the closest points and signed distances of one period
  * of grid nodes, and from them any member class's section. */
 #ifndef GR_CPTAB_H
 #define GR_CPTAB_H
 #include "field.h"
-#include "grid.h"
 #include "slice.h"
 
 typedef struct gr_cptab {
   int P;                 /* nodes per period */
   int nl;                /* template layers */
-  int g0;                /* global layer of table layer 0 */
+  double z0, t;          /* height of table layer 0, layer thickness, mm */
   double h, cell;        /* slice grid spacing, cell L, mm */
   double lo[2];          /* slice window corner of the reference voxel, mm */
   double oref[3];        /* reference voxel origin, mm */
   double dmax;           /* closest points are exact within this distance of H, mm */
   const gr_field *field; /* the reference class's field */
-  const gr_grid *grid;
   double *q, *sd;        /* per template layer, P*P nodes: closest point, signed distance */
 } gr_cptab;
 
 /* Nodes per period, or 0 when the slice grid (spacing h) is not periodic with the cell. */
 int gr_cptab_period(double cell, double h);
 /* An empty table (fill it with gr_cptab_layer for q = 0..nl-1); NULL + e on failure. */
-gr_cptab *gr_cptab_new(const gr_grid *grid, double h, double margin, const gr_field *ref, const double oref[3],
-                       int g0, int nl, double dmax, gr_err *e);
+gr_cptab *gr_cptab_new(double cell, double h, double margin, const gr_field *ref, const double oref[3], double z0,
+                       double t_layer, int nl, double dmax, gr_err *e);
 void gr_cptab_free(gr_cptab *t);
 /* Closest points of table layer q (thread-safe for distinct q). */
 int gr_cptab_layer(gr_cptab *t, int q, gr_err *e);

@@ -29,6 +29,8 @@ typedef struct offset {
   gr_field *tfield;   /* T as a field of q, when given so */
   double tconst;
   double L, o[3];
+  int vfix;           /* u, v, w relative to the own voxel (centre vc) */
+  double vc[3];
   double maxt;        /* max T over H's vertices (with a 20 % reserve) */
   double tmax;        /* max T over H's vertices */
   double herr;        /* bound on the distance between H's mesh and phi = 0 */
@@ -59,9 +61,28 @@ static void offset_free(void *ud) {
   free(f);
 }
 
-/* T at n points q (global, mm), before any density table. */
-static int thick_value(const offset *f, const gr_expr *x, size_t n, const double *qx, const double *qy,
-                 const double *qz, double *out, gr_err *e) {
+/* The centre of the voxel that owns point p (voxel-owned grading): the
+ * field's own voxel when it has one, else the voxel of the cell grid that
+ * holds p (a point on a face belongs to the voxel above it). */
+static void owner_centre(const offset *f, const double p[3], double c[3]) {
+  for (int a = 0; a < 3; a++)
+    c[a] = f->vfix ? f->vc[a] : f->o[a] + (floor((p[a] - f->o[a]) / f->L) + 0.5) * f->L;
+}
+
+/* q's coordinates relative to the voxel with centre c, normalised so that the
+ * voxel spans [-1, 1] and clamped to it (voxel-owned grading). */
+void gr_offset_uvw(const double q[3], const double c[3], double L, double uvw[3]) {
+  for (int a = 0; a < 3; a++) {
+    double t = 2 * (q[a] - c[a]) / L;
+    uvw[a] = t < -1 ? -1 : t > 1 ? 1 : t;
+  }
+}
+
+/* T at n foot points q (global, mm) of the points p (NULL: q itself locates
+ * the owning voxel when the field has none of its own), before any density
+ * table. */
+static int thick_value(const offset *f, const gr_expr *x, size_t n, const double *const p[3], const double *qx,
+                 const double *qy, const double *qz, double *out, gr_err *e) {
   if (!x && f->tfield) return gr_field_eval(f->tfield, n, qx, qy, qz, out, e);
   if (!x) {
     for (size_t i = 0; i < n; i++) out[i] = f->tconst;
@@ -71,13 +92,13 @@ static int thick_value(const offset *f, const gr_expr *x, size_t n, const double
   for (size_t s = 0; s < n; s += 256) {
     size_t m = n - s < 256 ? n - s : 256;
     for (size_t i = 0; i < m; i++) {
-      double a = fmod(qx[s + i] - f->o[0], f->L), b = fmod(qy[s + i] - f->o[1], f->L), c = fmod(qz[s + i] - f->o[2], f->L);
-      if (a < 0) a += f->L;
-      if (b < 0) b += f->L;
-      if (c < 0) c += f->L;
-      u[i] = 2 * a / f->L - 1;
-      v[i] = 2 * b / f->L - 1;
-      w[i] = 2 * c / f->L - 1;
+      double q[3] = {qx[s + i], qy[s + i], qz[s + i]}, c[3], r[3];
+      double pp[3] = {p ? p[0][s + i] : q[0], p ? p[1][s + i] : q[1], p ? p[2][s + i] : q[2]};
+      owner_centre(f, pp, c);
+      gr_offset_uvw(q, c, f->L, r);
+      u[i] = r[0];
+      v[i] = r[1];
+      w[i] = r[2];
     }
     const double *vars[6] = {qx + s, qy + s, qz + s, u, v, w};
     int rc = gr_expr_eval(x, m, vars, out + s, e);
@@ -87,9 +108,9 @@ static int thick_value(const offset *f, const gr_expr *x, size_t n, const double
 }
 
 /* T at n points q: thick_value, then the density table when there is one. */
-static int thick(const offset *f, const gr_expr *x, size_t n, const double *qx, const double *qy,
-                 const double *qz, double *out, gr_err *e) {
-  int rc = thick_value(f, x, n, qx, qy, qz, out, e);
+static int thick(const offset *f, const gr_expr *x, size_t n, const double *const p[3], const double *qx,
+                 const double *qy, const double *qz, double *out, gr_err *e) {
+  int rc = thick_value(f, x, n, p, qx, qy, qz, out, e);
   if (rc || !f->dens) return rc;
   gr_dtable_apply(f->dens, n, out);
   if (x && x == f->tin) for (size_t i = 0; i < n; i++) out[i] *= gr_dtable_ratio(f->dens);
@@ -226,7 +247,8 @@ static int offset_eval(void *ud, size_t n, const double *x, const double *y, con
   __atomic_fetch_add(&f->ncalls, 1, __ATOMIC_RELAXED);
   __atomic_fetch_add(&f->npts, (long)n, __ATOMIC_RELAXED);
   enum { B = 256 };
-  double ph[B], qx[B], qy[B], qz[B], dd[B], tt[B], ti[B];
+  double ph[B], qx[B], qy[B], qz[B], dd[B], tt[B], ti[B], px[B], py[B], pz[B];
+  const double *pk[3] = {px, py, pz};
   size_t idx[B];
   for (size_t s = 0; s < n; s += B) {
     size_t m = n - s < B ? n - s : B;
@@ -254,17 +276,21 @@ static int offset_eval(void *ud, size_t n, const double *x, const double *y, con
       qx[k] = h.q[0];
       qy[k] = h.q[1];
       qz[k] = h.q[2];
+      px[k] = p[0];
+      py[k] = p[1];
+      pz[k] = p[2];
       dd[k] = sqrt((p[0] - h.q[0]) * (p[0] - h.q[0]) + (p[1] - h.q[1]) * (p[1] - h.q[1]) + (p[2] - h.q[2]) * (p[2] - h.q[2]));
       idx[k++] = i;
     }
     if (k == 0) continue;
-    if ((rc = thick(f, f->t, k, qx, qy, qz, tt, e))) return rc;
-    if (f->tin && (rc = thick(f, f->tin, k, qx, qy, qz, ti, e))) return rc;
+    if ((rc = thick(f, f->t, k, pk, qx, qy, qz, tt, e))) return rc;
+    if (f->tin && (rc = thick(f, f->tin, k, pk, qx, qy, qz, ti, e))) return rc;
     if (f->mode == GR_DIST_EXACT) {
       /* refine q onto the analytic surface where g is small: there the
        * value matters; elsewhere the mesh value has the right sign */
       size_t nr = 0;
-      double rx[B], ry[B], rz[B], rt[B], rti[B];
+      double rx[B], ry[B], rz[B], rt[B], rti[B], rpx[B], rpy[B], rpz[B];
+      const double *rp[3] = {rpx, rpy, rpz};
       size_t ri[B];
       for (size_t q = 0; q < k; q++) {
         size_t i = idx[q];
@@ -276,11 +302,13 @@ static int offset_eval(void *ud, size_t n, const double *x, const double *y, con
         exact_refine(f, p, qq);
         qx[q] = qq[0]; qy[q] = qq[1]; qz[q] = qq[2];
         dd[q] = sqrt((p[0] - qq[0]) * (p[0] - qq[0]) + (p[1] - qq[1]) * (p[1] - qq[1]) + (p[2] - qq[2]) * (p[2] - qq[2]));
-        rx[nr] = qq[0]; ry[nr] = qq[1]; rz[nr] = qq[2]; ri[nr++] = q;
+        rx[nr] = qq[0]; ry[nr] = qq[1]; rz[nr] = qq[2];
+        rpx[nr] = p[0]; rpy[nr] = p[1]; rpz[nr] = p[2];
+        ri[nr++] = q;
       }
       if (nr) {
-        if ((rc = thick(f, f->t, nr, rx, ry, rz, rt, e))) return rc;
-        if (f->tin && (rc = thick(f, f->tin, nr, rx, ry, rz, rti, e))) return rc;
+        if ((rc = thick(f, f->t, nr, rp, rx, ry, rz, rt, e))) return rc;
+        if (f->tin && (rc = thick(f, f->tin, nr, rp, rx, ry, rz, rti, e))) return rc;
         for (size_t r = 0; r < nr; r++) {
           tt[ri[r]] = rt[r];
           if (f->tin) ti[ri[r]] = rti[r];
@@ -388,12 +416,13 @@ int gr_offset_closest(const gr_field *f_, size_t n, const double *x, const doubl
   return GR_OK;
 }
 
-int gr_offset_values(const gr_field *f_, size_t n, const double *q, const double *sd,
-                     double *out, gr_err *e) {
-  const offset *f = gr_field_callback_data(f_, offset_eval);
-  if (!f) return gr_fail(e, GR_EARG, "offset values need an offset field");
+/* Values from closest points q and signed distances sd; p (NULL: q) the
+ * points themselves, for the owning voxel. */
+static int values_at(const offset *f, size_t n, const double *p, const double *q, const double *sd, double *out,
+                     gr_err *e) {
   enum { B = 256 };
-  double qx[B], qy[B], qz[B], tt[B], ti[B];
+  double qx[B], qy[B], qz[B], tt[B], ti[B], px[B], py[B], pz[B];
+  const double *pk[3] = {px, py, pz};
   size_t idx[B];
   for (size_t s = 0; s < n; s += B) {
     size_t m = n - s < B ? n - s : B, k = 0;
@@ -404,15 +433,24 @@ int gr_offset_values(const gr_field *f_, size_t n, const double *q, const double
         continue;
       }
       qx[k] = qi[0]; qy[k] = qi[1]; qz[k] = qi[2];
+      const double *pi = p ? p + 3 * (s + i) : qi;
+      px[k] = pi[0]; py[k] = pi[1]; pz[k] = pi[2];
       idx[k++] = i;
     }
     if (k == 0) continue;
-    int rc = thick(f, f->t, k, qx, qy, qz, tt, e);
-    if (!rc && f->tin) rc = thick(f, f->tin, k, qx, qy, qz, ti, e);
+    int rc = thick(f, f->t, k, pk, qx, qy, qz, tt, e);
+    if (!rc && f->tin) rc = thick(f, f->tin, k, pk, qx, qy, qz, ti, e);
     if (rc) return rc;
     for (size_t r = 0; r < k; r++) out[s + idx[r]] = offset_value(f, sd[s + idx[r]], tt[r], f->tin ? ti[r] : tt[r]);
   }
   return GR_OK;
+}
+
+int gr_offset_values(const gr_field *f_, size_t n, const double *q, const double *sd,
+                     double *out, gr_err *e) {
+  const offset *f = gr_field_callback_data(f_, offset_eval);
+  if (!f) return gr_fail(e, GR_EARG, "offset values need an offset field");
+  return values_at(f, n, NULL, q, sd, out, e);
 }
 
 int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const double *y,
@@ -420,13 +458,14 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
   const offset *f = gr_field_callback_data(f_, offset_eval);
   if (!f) return gr_fail(e, GR_EARG, "offset evaluation needs an offset field");
   enum { B = 256 };
-  double q[3 * B], sd[B], ph[B];
+  double q[3 * B], sd[B], ph[B], pb[3 * B];
   for (size_t s = 0; s < n; s += B) {
     size_t m = n - s < B ? n - s : B;
     int rc = gr_field_eval(f->phi, m, x + s, y + s, z + s, ph, e);
     if (rc) return rc;
     for (size_t i = 0; i < m; i++) {
       double p[3] = {x[s + i], y[s + i], z[s + i]}, *qi = q + 3 * i;
+      memcpy(pb + 3 * i, p, sizeof p);
       memcpy(qi, hint + 3 * (s + i), 3 * sizeof *qi);
       if (f->mode != GR_DIST_EXACT || isnan(qi[0]) || !exact_newton(f, p, qi)) {
         /* no usable hint: search the mesh */
@@ -444,7 +483,7 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
         for (int a = 0; a < 3; a++) grad[3 * (s + i) + a] = d > 1e-9 ? sg * (p[a] - qi[a]) / d : NAN;
       }
     }
-    if ((rc = gr_offset_values(f_, m, q, sd, out + s, e))) return rc;
+    if ((rc = values_at(f, m, pb, q, sd, out + s, e))) return rc;
   }
   return GR_OK;
 }
@@ -495,7 +534,8 @@ static double offset_tmax_estimate(const offset *f, const gr_offset_opts *o) {
     const gr_expr *x = pass ? f->tin : f->t;
     if (!x && !(pass == 0 && f->tfield)) continue;
     gr_err e2;
-    if (thick(f, x, (size_t)n, sx, sy, sz, st, &e2) == GR_OK) {
+    const double *sp[3] = {sx, sy, sz};
+    if (thick(f, x, (size_t)n, sp, sx, sy, sz, st, &e2) == GR_OK) {
       for (int q = 0; q < n; q++)
         if (st[q] > tmax_est) tmax_est = st[q];
     } else {
@@ -557,7 +597,8 @@ static int offset_check_thickness(offset *f, const gr_offset_opts *o, size_t nv,
   for (int pass = 0; pass < (f->tin ? 2 : 1) && (f->t || f->tin || f->tfield); pass++) {
     const gr_expr *x = pass ? f->tin : f->t;
     if (!x && !(pass == 0 && f->tfield)) continue;
-    if (thick(f, x, nv, vx, vy, vz, t, e)) {
+    const double *vp[3] = {vx, vy, vz};
+    if (thick(f, x, nv, vp, vx, vy, vz, t, e)) {
       char m[512];
       snprintf(m, sizeof m, "%s", e->msg);
       return gr_fail(e, e->code, "bad option '%s' (%s)", pass ? "inside" : "thickness", m);
@@ -625,6 +666,8 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   f->tfield = (!o->thickness_expr && o->thickness_field) ? gr_field_ref(o->thickness_field) : NULL;
   f->lip = gr_field_lipschitz(o->surface);
   f->dens = gr_dtable_ref(o->density);
+  f->vfix = o->voxel != 0;
+  for (int a = 0; a < 3; a++) f->vc[a] = o->box_lo[a] + 0.5 * o->cell;
   if (offset_compile(f, o, e)) { offset_free(f); return NULL; }
   /* H over the box grown by a reach: margin + the largest thickness (from
    * samples over the grown box) + two mesh spacings */

@@ -23,6 +23,9 @@ typedef struct gr_offset_opts {
   double box_lo[3], box_hi[3];/* where the field will be evaluated, mm */
   double margin;              /* extra evaluation margin around the box, mm */
   int res;                    /* marching-cubes samples per cell edge for H */
+  int voxel;                  /* 1: the field is the voxel [box_lo, box_lo + cell] (a template):
+                                 u, v, w relative to it; 0: relative to the voxel of the
+                                 cell grid (origin, cell) that holds the point p */
   double thickness;           /* constant T (used when thickness_expr is NULL) */
   const char *thickness_expr; /* T in x,y,z,u,v,w,L (copied) */
   const char *inside_expr;    /* inside T for asymmetric sheets, or NULL */
@@ -41,6 +44,10 @@ typedef struct gr_offset_opts {
                                  taken; the inside pass gets ratio * T) */
 } gr_offset_opts;
 gr_offset_opts gr_offset_defaults(void);
+
+/* The foot point q relative to the voxel with centre c (mm) and size L,
+ * normalised to [-1, 1] and clamped: the u, v, w of voxel-owned grading. */
+void gr_offset_uvw(const double q[3], const double c[3], double L, double uvw[3]);
 
 /* The offset field (a gr_field usable everywhere). Thickness errors
  * (negative, NaN, over half the cell) are GR_EARG naming the value and the

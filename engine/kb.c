@@ -20,6 +20,12 @@
 
 const char *gr_kb_dir(const gr_kb *kb) { return kb->dir; }
 
+int gr_kb_stale(const char *signature) {
+  static const char any[] = "{gradus_template: ";
+  return signature && !strncmp(signature, any, strlen(any)) &&
+         strncmp(signature, GR_TEMPLATE_GEOMETRY, strlen(GR_TEMPLATE_GEOMETRY)) != 0;
+}
+
 /* "<a>/<b>" into a new string, or NULL. */
 char *gr_kb_join(const char *a, const char *b) {
   size_t na = strlen(a), nb = strlen(b);
@@ -549,6 +555,9 @@ static void verify_fn(void *ctx, const char *name, const char *key, gr_template 
   if (!t) {
     c->r->corrupt++;
     why = defect;
+  } else if (gr_kb_stale(t->signature)) {
+    if (!c->prune) msg_add(c->m, "t/%s: stale: built under an older engine geometry, never served (prune removes it)", name);
+    else why = "stale: built under an older engine geometry";
   } else if (c->prune && c->opts && c->opts->older_than > 0 && t->created < c->opts->older_than) {
     why = "older than the age limit";
   } else if (c->prune && c->opts && c->opts->use_keep && !in_keep(c->opts, key)) {

@@ -35,6 +35,15 @@ void gr_sha256_final(gr_sha256 *s, unsigned char out[32]);
 void gr_sha256_hex(const void *data, size_t n, char out[65]);
 
 /* ---- templates ---- */
+/* How every signature of the current engine geometry begins: the template
+ * format and the grading rule (voxel-owned u, v, w). A template whose
+ * signature begins otherwise was built under an older rule: its key is never
+ * asked for again, `gradus kb list` marks it stale and prune removes it. */
+#define GR_TEMPLATE_GEOMETRY "{gradus_template: 2, grading: voxel-owned,"
+/* 1 when a signature is a Gradus template's of an older engine geometry
+ * (it begins with "{gradus_template: " but not with GR_TEMPLATE_GEOMETRY). */
+int gr_kb_stale(const char *signature);
+
 #define GR_TEMPLATE_NQ 8
 typedef struct gr_template {
   char key[65];          /* lowercase hex SHA-256 of `signature` (64 chars + NUL) */

@@ -94,8 +94,9 @@ function M.kb(args)
     local entries = gradus.kb.list(dir)
     print(("knowledge base %s: %d templates"):format(dir, #entries))
     for _, e in ipairs(entries) do
-      print(("%s  %8d bytes  %s  %s"):format(e.key:sub(1, 16), e.bytes, e.qualified and "qualified" or "unqualified",
-        e.signature:sub(1, 100)))
+      -- stale: built under an older engine geometry (grading rule), never served; prune removes it
+      print(("%s  %8d bytes  %s  %s"):format(e.key:sub(1, 16), e.bytes, e.stale and "stale" or
+        (e.qualified and "qualified" or "unqualified"), e.signature:sub(1, 100)))
     end
     return 0
   elseif sub == "show" then

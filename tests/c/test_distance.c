@@ -429,6 +429,88 @@ TEST(thickness_errors) {
   gr_field_free(phi);
 }
 
+/* Voxel-owned grading: u, v, w are the foot point's coordinates relative to
+ * the voxel that owns the point p (the field's own voxel, or the cell-grid
+ * voxel holding p), clamped to [-1, 1]. */
+TEST(voxel_owned_uvw) {
+  double c[3] = {1, 1, 1}, r[3];
+  double q1[3] = {-0.5, 1.5, 3.2};
+  gr_offset_uvw(q1, c, 2, r);
+  CHECK_NEAR(r[0], -1, 0); /* across the x = 0 face: clamped */
+  CHECK_NEAR(r[1], 0.5, 1e-15);
+  CHECK_NEAR(r[2], 1, 0);  /* across the z = 2 face: clamped */
+  double q2[3] = {2.0001, -1e-9, 1};
+  gr_offset_uvw(q2, c, 2, r);
+  CHECK_NEAR(r[0], 1, 0);
+  CHECK_NEAR(r[1], -1, 0);
+  CHECK_NEAR(r[2], 0, 0);
+  double q3[3] = {0.25, 1.75, 0};
+  gr_offset_uvw(q3, c, 2, r);
+  CHECK_NEAR(r[0], -0.75, 1e-15);
+  CHECK_NEAR(r[1], 0.75, 1e-15);
+  CHECK_NEAR(r[2], -1, 0);
+}
+
+/* A gyroid sheet graded along w (T = 0.06 + 0.03 w, L = 2): near a z face
+ * the foot point q of p often lies across the face. The field's value must
+ * be |sd| - T(q) with w clamped relative to p's voxel (the grid voxel for a
+ * whole-block field, the field's own voxel for a template's), not wrapped. */
+static gr_field *gyroid_sheet(int voxel, gr_err *e) {
+  gr_field *phi = gr_field_tpms("gyroid", PL, NULL, 0, e);
+  if (!phi) return NULL;
+  gr_offset_opts o = gr_offset_defaults();
+  o.surface = phi;
+  o.cell = PL;
+  for (int a = 0; a < 3; a++) { o.box_lo[a] = 0; o.box_hi[a] = PL; }
+  o.margin = 0.4;
+  o.res = 40;
+  o.voxel = voxel;
+  o.thickness_expr = "0.06+0.03*w";
+  gr_field *g = gr_offset_field_new(&o, e);
+  gr_field_free(phi);
+  return g;
+}
+
+static double t_rule(double qz, double cz) {
+  double w = 2 * (qz - cz) / PL;
+  return 0.06 + 0.03 * (w < -1 ? -1 : w > 1 ? 1 : w);
+}
+
+TEST(voxel_owned_field) {
+  gr_err e;
+  gr_field *blk = gyroid_sheet(0, &e), *own = gyroid_sheet(1, &e);
+  CHECK(blk && own, "%s", e.msg);
+  if (!blk || !own) { gr_field_free(blk); gr_field_free(own); return; }
+  unsigned long long sd = 7;
+  int across = 0, checked = 0;
+  double emax = 0, wrapmin = INFINITY;
+  for (int it = 0; it < 20000 && checked < 60; it++) {
+    /* p within 0.1 mm of the face z = 2, on either side */
+    double p[3] = {0.2 + 1.6 * rnd(&sd), 0.2 + 1.6 * rnd(&sd), 1.9 + 0.2 * rnd(&sd)}, q[3], s;
+    if (gr_offset_closest(blk, 1, &p[0], &p[1], &p[2], 0.5, q, &s, &e) || isnan(q[0])) continue;
+    double cz_blk = p[2] < 2 ? 1 : 3; /* the grid voxel holding p */
+    double want_blk = fabs(s) - t_rule(q[2], cz_blk), want_own = fabs(s) - t_rule(q[2], 1);
+    if (fabs(want_blk) > 0.005 || fabs(want_own) > 0.005) continue; /* near the offset surface: q refined */
+    double gb = eval1(blk, p[0], p[1], p[2]), go = eval1(own, p[0], p[1], p[2]);
+    emax = fmax(emax, fmax(fabs(gb - want_blk), fabs(go - want_own)));
+    checked++;
+    if ((q[2] < 2) != (p[2] < 2)) {
+      across++;
+      /* the old rule wrapped q's own cell coordinate */
+      double c = fmod(q[2], PL), wrap = fabs(s) - (0.06 + 0.03 * (2 * c / PL - 1));
+      wrapmin = fmin(wrapmin, fabs(gb - wrap));
+    }
+  }
+  printf("  info: %d points near z = 2 checked, %d with the foot across the face; max |g - g_rule| %.3g mm;"
+         " the wrap rule is off by >= %.3g mm there\n", checked, across, emax, wrapmin);
+  CHECK(checked >= 30, "only %d points", checked);
+  CHECK(across >= 5, "only %d feet across the face", across);
+  CHECK(emax < 1e-6, "max deviation from the rule %g mm", emax);
+  CHECK(wrapmin > 0.01, "the wrap rule would agree within %g mm", wrapmin);
+  gr_field_free(blk);
+  gr_field_free(own);
+}
+
 int main(void) {
   RUN(triangle_vs_sampling);
   RUN(bvh_sphere);
@@ -436,5 +518,7 @@ int main(void) {
   RUN(cylinder_network);
   RUN(graded_p_sheet);
   RUN(thickness_errors);
+  RUN(voxel_owned_uvw);
+  RUN(voxel_owned_field);
   DONE();
 }

@@ -719,6 +719,39 @@ TEST(prune) {
   free(dir);
 }
 
+/* Templates built under an older engine geometry (grading rule) are never
+ * asked for again: verify names them, prune removes them, others stay. */
+TEST(stale_geometry) {
+  char *dir = tmpdir();
+  gr_err e;
+  gr_kb *kb = gr_kb_open(dir, &e);
+  const char *sig[3] = {"{gradus_template: 1, surface: primitive, L: 2}", GR_TEMPLATE_GEOMETRY " surface: primitive, L: 2}",
+                        "{type: other}"};
+  gr_template *t[3];
+  for (int i = 0; i < 3; i++) {
+    t[i] = gr_template_new(sig[i], 1, 1, 0, &e);
+    CHECK(t[i] && gr_kb_put(kb, t[i], &e) == GR_OK, "%s", e.msg);
+  }
+  CHECK(gr_kb_stale(sig[0]) && !gr_kb_stale(sig[1]) && !gr_kb_stale(sig[2]), "stale: only the old geometry");
+  gr_kb_report r;
+  CHECK(gr_kb_verify(kb, &r, &e) == GR_OK, "%s", e.msg);
+  CHECK(r.messages && strstr(r.messages, "stale") && strstr(r.messages, t[0]->key), "verify names it: %s",
+        r.messages ? r.messages : "(none)");
+  CHECK(r.corrupt == 0, "stale is not damage");
+  gr_kb_report_clear(&r);
+  CHECK(gr_kb_prune(kb, NULL, &r, &e) == GR_OK, "%s", e.msg);
+  CHECK(r.removed == 1 && r.index_entries == 2, "removed %zu, left %zu", r.removed, r.index_entries);
+  gr_kb_report_clear(&r);
+  gr_template *got = NULL;
+  CHECK(gr_kb_get(kb, t[0]->key, &got, NULL, 0, &e) == GR_OK && got == NULL, "stale template gone");
+  CHECK(gr_kb_get(kb, t[1]->key, &got, NULL, 0, &e) == GR_OK && got != NULL, "current template kept");
+  gr_template_free(got);
+  for (int i = 0; i < 3; i++) gr_template_free(t[i]);
+  gr_kb_close(kb);
+  rm_rf(dir);
+  free(dir);
+}
+
 int main(void) {
   RUN(sha256_vectors);
   RUN(template_new_args);
@@ -731,5 +764,6 @@ int main(void) {
   RUN(two_processes);
   RUN(threads);
   RUN(prune);
+  RUN(stale_geometry);
   DONE();
 }
