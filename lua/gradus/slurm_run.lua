@@ -123,10 +123,12 @@ function M.same_job(parts)
     if par and not first then
       first, fpath = par, p
     elseif par then
-      local keys = {}
-      for k in pairs(first) do keys[k] = true end
-      for k in pairs(par) do keys[k] = true end
-      for k in pairs(keys) do
+      local set, keys = {}, {}
+      for k in pairs(first) do set[k] = true end
+      for k in pairs(par) do set[k] = true end
+      for k in pairs(set) do keys[#keys + 1] = k end
+      table.sort(keys) -- the first differing parameter in name order: the same message every time
+      for _, k in ipairs(keys) do
         if k ~= "layers" and show(first[k]) ~= show(par[k]) then
           error(("%s and %s are not parts of one job: parameter %s is %s in one and %s in the other (their stats)")
             :format(fpath, p, k, show(first[k]), show(par[k])), 0)

@@ -46,7 +46,7 @@ refused "overlap refused with its layers" "overlap in layers 10-13" "$d/o_ascii.
 cp "$d/b_binary.cli" "$d/nb.cli" # no stats beside it: the CLI files alone
 refused "ASCII with binary refused" "is ASCII but" "$d/a_ascii.cli" "$d/nb.cli"
 job h_ascii 14:27 ascii -D hatch=0.07
-refused "another job's part refused (its stats)" "parameter hatch is 0.05 in one and 0.07" "$d/a_ascii.cli" "$d/h_ascii.cli"
+refused "another job's part refused (its stats)" "is 0.025 in one and 0.035 in the other (their stats)" "$d/a_ascii.cli" "$d/h_ascii.cli"
 job w_ascii 14:27 ascii -D cells=2,1,2
 rm -f "$d/w_ascii.yaml"
 refused "another job's part refused (its header)" "are not parts of one job: their headers differ" "$d/a_ascii.cli" "$d/w_ascii.cli"
