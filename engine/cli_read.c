@@ -75,6 +75,7 @@ static int rd_flush(rd *r, gr_err *e) { return r->have ? r->fn(r->ud, r->l, r->s
 
 /* Append the block of n points r->xy with CLI id and direction. */
 static int rd_block(rd *r, int shape, int id, int dir, size_t n, gr_err *e) {
+  if (n == 0) return GR_OK; /* an empty polyline or hatch block holds nothing to scan: skipped */
   int kind = id >= 1 ? (id - 1) % 3 : GR_EDGE, laser = id >= 1 ? (id - 1) / 3 : 0;
   int st = gr_cli_style_index(r->h, id, r->power, r->speed, r->focus);
   if (st < 0) return gr_fail(e, GR_EPARSE, "%s: more than %d build styles", r->path, GR_CLI_MAXSTYLES);
@@ -130,8 +131,9 @@ static int ascii_line(rd *r, char *s, size_t n, int line, int *end, gr_err *e) {
   c = q + 1;
   long cnt = strtol(c, &q, 10);
   /* each coordinate takes at least two characters (",5"): a larger count cannot be on this line */
-  if (q == c || cnt < 0 || (size_t)cnt > n / (poly ? 4 : 8))
-    return gr_fail(e, GR_EPARSE, "%s:%d: bad count %ld (the line holds %zu characters)", path, line, cnt, n);
+  if (q == c || cnt < 0) return gr_fail(e, GR_EPARSE, "%s:%d: bad count", path, line);
+  if ((size_t)cnt > n / (poly ? 4 : 8))
+    return gr_fail(e, GR_EPARSE, "%s:%d: count %ld exceeds what the line's %zu characters can hold", path, line, cnt, n);
   size_t npts = poly ? (size_t)cnt : 2 * (size_t)cnt;
   if (gr_grow(&r->xy, &r->capxy, npts + 1, 2 * sizeof(double))) return gr_fail(e, GR_EMEM, "out of memory");
   for (size_t k = 0; k < 2 * npts; k++) {
@@ -268,7 +270,7 @@ static int read_cli(rd *r, const char *t, size_t len, size_t from, gr_err *e) {
   const char *path = r->path;
   const char *he = len >= 13 ? memmem(t, len, "$$HEADEREND", 11) : NULL;
   if (len < 13 || memcmp(t, "$$HEADERSTART", 13) || !he)
-    return gr_fail(e, GR_EPARSE, "%s:1: byte 0: neither a CLI file (no $$HEADERSTART ... $$HEADEREND) nor an OVF file (no magic \"LVF!\")", path);
+    return gr_fail(e, GR_EPARSE, "%s:1: not a CLI file (no $$HEADERSTART ... $$HEADEREND at byte 0) and not an OVF file (no magic \"LVF!\")", path);
   if (read_header(path, t, he, r->h, e)) return e->code;
   size_t pos = (size_t)(he - t) + 11;
   if (from) {

@@ -361,7 +361,7 @@ TEST(cli_bad_input) {
   f = fopen(p, "wb");
   fputs("$$HEADERSTART\n$$ASCII\n$$HEADEREND\n$$GEOMETRYSTART\n$$LAYER/1\n$$HATCHES/1,900000000,1,2\n", f);
   fclose(f);
-  cli_refused("ASCII count larger than the line", p, ":6: bad count 900000000");
+  cli_refused("ASCII count larger than the line", p, ":6: count 900000000 exceeds");
   /* nothing written when the input is bad */
   gr_err e;
   gr_err_clear(&e);
