@@ -426,7 +426,7 @@ static int all_covered(const gr_rings *sec, const gr_rings *core, double b, doub
       for (int k = 0; k < m; k++) {
         double t = (double)k / m, x = p[2 * a] + t * (q[0] - p[2 * a]), y = p[2 * a + 1] + t * (q[1] - p[2 * a + 1]);
         if (!in_box(box, x, y)) continue;
-        if (pd && fabs(gr_polydist_at(pd, x, y, NULL)) <= b + 0.5 * tol) continue;
+        if (pd && gr_polydist_within(pd, x, y, b + 0.5 * tol)) continue;
         ok = 0; /* an uncovered boundary sample: where the slivers are */
         fail[0] = fmin(fail[0], x); fail[1] = fmin(fail[1], y);
         fail[2] = fmax(fail[2], x); fail[3] = fmax(fail[3], y);
