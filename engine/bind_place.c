@@ -345,6 +345,8 @@ static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) 
   set_int(L, "built", st->built);
   set_int(L, "reused", st->reused);
   set_int(L, "corrupt_rebuilt", st->kb_corrupt);
+  set_int(L, "stored", st->kb_stored);
+  set_int(L, "not_stored", st->kb_not_stored);
   /* share of the unique templates taken from the knowledge base (0 when none
    * was reused), and voxels per template (how much the job repeats itself) */
   set_num(L, "reuse_ratio", st->classes ? (double)st->reused / st->classes : 0);
@@ -441,6 +443,10 @@ static int l_run(lua_State *L) {
   gr_job_run_opts r;
   memset(&r, 0, sizeof r);
   r.direct = gr_opt_boolean(L, 2, "direct", 0);
+  static const char *const stores[] = {"reused", "all", "none"};
+  const char *store = gr_opt_string(L, 2, "kb_store", "reused");
+  for (r.kb_store = 0; r.kb_store < 3 && strcmp(store, stores[r.kb_store]); r.kb_store++) {}
+  if (r.kb_store == 3) return luaL_error(L, "bad option 'kb_store' (all, reused or none, got '%s')", store);
   r.first = gr_opt_integer(L, 2, "first", 0);
   r.last = gr_opt_integer(L, 2, "last", 0);
   int split = gr_opt_boolean(L, 2, "split", 0);

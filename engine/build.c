@@ -202,6 +202,13 @@ static int table_item(void *arg_, int item, gr_err *e) {
   return gr_cptab_layer(a->tab, item, e);
 }
 
+/* 1 if a built template of a class of `count` voxels goes to the knowledge
+ * base under policy kb_store (enum gr_kb_store): all, none, or reused = only
+ * when the class occurs more than once in the part. */
+static int should_store(int kb_store, int count) {
+  return kb_store == GR_KB_STORE_ALL || (kb_store == GR_KB_STORE_REUSED && count > 1);
+}
+
 static int store_item(void *arg_, int item, gr_err *e) {
   gr_build *a = arg_;
   gr_job *j = a->j;
@@ -221,11 +228,16 @@ static int store_item(void *arg_, int item, gr_err *e) {
     j->st.unqualified++;
     snprintf(j->st.unqualified_why, sizeof j->st.unqualified_why, "%.16s: %s", cl->key, why);
   }
-  if (a->kb && !cl->trimmed && a->jb < 0) {
+  if (a->kb && !cl->trimmed && a->jb < 0 && !should_store(a->kb_store, cl->count)) {
+    pthread_mutex_lock(a->kbmu);
+    j->st.kb_not_stored++;
+    pthread_mutex_unlock(a->kbmu);
+  } else if (a->kb && !cl->trimmed && a->jb < 0) {
     gr_template *r = gr_tmpl_to_record(&j->o, cl->t, cl->sig, cl->count, e);
     if (!r) return e->code ? e->code : GR_EMEM;
     pthread_mutex_lock(a->kbmu);
     int rc = gr_kb_put(a->kb, r, e);
+    j->st.kb_stored += rc == GR_OK;
     pthread_mutex_unlock(a->kbmu);
     gr_template_free(r);
     if (rc) return rc;

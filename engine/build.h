@@ -20,6 +20,7 @@
 typedef struct gr_build {
   gr_job *j;
   gr_kb *kb;               /* knowledge base or NULL */
+  int kb_store;            /* enum gr_kb_store (place.h) */
   pthread_mutex_t *kbmu;   /* guards kb, the job's warning and counts */
   int *items;              /* classes */
   int nitems;

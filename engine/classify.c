@@ -7,13 +7,29 @@
 
 #define NS 4 /* thickness samples per axis for the signature */
 
+/* A domain without a known Lipschitz bound (an expression): a local bound
+ * estimated from the gradient at the voxel's samples, with a safety factor
+ * (the gradient may grow between samples); INFINITY if it cannot be had. */
+#define LIP_SAFETY 1.5
+static double local_lipschitz(const gr_field *d, int n, const double *x, const double *y, const double *z) {
+  double gx[125], gy[125], gz[125], g = 0;
+  gr_err e;
+  gr_err_clear(&e);
+  if (n > 125 || gr_field_grad(d, (size_t)n, x, y, z, gx, gy, gz, &e)) return INFINITY;
+  for (int q = 0; q < n; q++) g = fmax(g, sqrt(gx[q] * gx[q] + gy[q] * gy[q] + gz[q] * gz[q]));
+  return isfinite(g) && g > 0 ? LIP_SAFETY * g : INFINITY;
+}
+
 /* Classify voxels against the domain: sample the domain field on a 5^3
  * lattice of the voxel grown by the contour margin; all positive -> outside,
- * all negative -> inside, else cut. With a Lipschitz bound the samples also
- * prove emptiness of the gaps between them. */
+ * all negative -> inside, else cut. With a Lipschitz bound (known, or
+ * estimated from the gradient for an expression) the samples also prove
+ * emptiness of the gaps between them; a voxel inside is inside the skin's
+ * reach only if no sample is within skin + h of the boundary, so a voxel
+ * wholly inside beyond the skin is an ordinary voxel (shares templates). */
 static int classify_domain(gr_job *j, gr_err *e) {
   if (!j->domain) return GR_OK;
-  double K = gr_field_lipschitz(j->domain);
+  double K0 = gr_field_lipschitz(j->domain);
   enum { M = 5 };
   double x[M * M * M], y[M * M * M], z[M * M * M], f[M * M * M];
   double L = j->o.cell, grow = j->o.beam_offset + j->o.contours * j->o.hatch + j->skin;
@@ -32,6 +48,7 @@ static int classify_domain(gr_job *j, gr_err *e) {
           z[n] = o[2] - grow + c * h;
         }
     if (gr_field_eval(j->domain, n, x, y, z, f, e)) return e->code;
+    double K = isfinite(K0) ? K0 : local_lipschitz(j->domain, n, x, y, z);
     int pos = 0, neg = 0;
     double half = h * sqrt(3.0) / 2;
     for (int q = 0; q < n; q++) {

@@ -426,7 +426,7 @@ static int all_covered(const gr_rings *sec, const gr_rings *core, double b, doub
       for (int k = 0; k < m; k++) {
         double t = (double)k / m, x = p[2 * a] + t * (q[0] - p[2 * a]), y = p[2 * a + 1] + t * (q[1] - p[2 * a + 1]);
         if (!in_box(box, x, y)) continue;
-        if (pd && fabs(gr_polydist_at(pd, x, y, NULL)) <= b + 0.5 * tol) continue;
+        if (pd && gr_polydist_within(pd, x, y, b + 0.5 * tol)) continue;
         ok = 0; /* an uncovered boundary sample: where the slivers are */
         fail[0] = fmin(fail[0], x); fail[1] = fmin(fail[1], y);
         fail[2] = fmax(fail[2], x); fail[3] = fmax(fail[3], y);
@@ -594,26 +594,25 @@ static int emit_rings(const gr_rings *r, const gr_hatch_opts *o, gr_layer *cl,
   return GR_OK;
 }
 
-int gr_hatch_layer(const gr_rings *section, const gr_hatch_opts *o, gr_layer *out,
-                   gr_hatch_report *rep, gr_err *e) {
-  gr_hatch_report dummy;
-  if (!rep) rep = &dummy;
+/* Contours and thin-wall scans of section into cl, and the hatch region
+ * (the inward offset by h) into reg: the offsets are computed once each and
+ * the region is handed back, not hatched. rep is reset first. */
+static int contours_region(const gr_rings *section, const gr_hatch_opts *o, gr_layer *cl, gr_rings *reg,
+                           gr_hatch_report *rep, gr_err *e) {
   memset(rep, 0, sizeof *rep);
   int rc = gr_hatch_check(o, e);
   if (rc) return rc;
-  if (!section || !out) return gr_fail(e, GR_EARG, "hatch: section and layer must not be NULL");
   double d = o->spacing, b = isnan(o->beam_offset) ? d / 2 : o->beam_offset;
   double cell = isnan(o->cell) ? d / 4 : o->cell;
   int nc = o->contours;
   double h = nc == 0 ? b + o->gap : b + (nc - 1) * d + o->gap;
   rep->hatch_offset = h;
   gr_offset_fn off = pick_offset(o);
-  gr_rings *sec = gr_rings_new(), *ofs = gr_rings_new(), *reg = gr_rings_new();
-  gr_layer *cl = gr_layer_new(out->z), *hl = gr_layer_new(out->z);
+  gr_rings *sec = gr_rings_new(), *ofs = gr_rings_new();
   char *hit = NULL;
   int *depth = NULL;
   double *box = NULL;
-  if (!sec || !ofs || !reg || !cl || !hl) { rc = gr_fail(e, GR_EMEM, "hatch: out of memory"); goto done; }
+  if (!sec || !ofs) { rc = gr_fail(e, GR_EMEM, "hatch: out of memory"); goto done; }
   if (gr_rings_copy(sec, section)) { rc = gr_fail(e, GR_EMEM, "hatch: out of memory"); goto done; }
   if ((rc = gr_rings_nest(sec, e))) goto done;
   /* offset by b: the first contour, and the thin-wall test */
@@ -656,19 +655,52 @@ int gr_hatch_layer(const gr_rings *section, const gr_hatch_opts *o, gr_layer *ou
     if ((rc = emit_rings(ofs, o, cl, rep, e))) goto done;
   }
   if (h == last) { /* default gap: the hatch region is the last contour */
-    gr_rings *t = reg; reg = ofs; ofs = t;
+    gr_rings t = *reg; /* take the offset's arrays, hand reg's back to be freed */
+    *reg = *ofs;
+    *ofs = t;
   } else if ((rc = off(sec, h, cell, reg, e))) goto done;
-  if ((rc = gr_hatch_region(reg, o, hl, rep, e))) goto done;
-  out->thin_walls += cl->thin_walls;
-  cl->thin_walls = 0;
-  if (o->contour_first) {
-    if (gr_layer_append(out, cl, 0, 0) || gr_layer_append(out, hl, 0, 0)) rc = gr_fail(e, GR_EMEM, "hatch: out of memory");
-  } else {
-    if (gr_layer_append(out, hl, 0, 0) || gr_layer_append(out, cl, 0, 0)) rc = gr_fail(e, GR_EMEM, "hatch: out of memory");
-  }
 done:
   free(hit); free(depth); free(box);
-  gr_rings_free(sec); gr_rings_free(ofs); gr_rings_free(reg);
+  gr_rings_free(sec); gr_rings_free(ofs);
+  return rc;
+}
+
+int gr_hatch_layer(const gr_rings *section, const gr_hatch_opts *o, gr_layer *out,
+                   gr_hatch_report *rep, gr_err *e) {
+  gr_hatch_report dummy;
+  if (!rep) rep = &dummy;
+  memset(rep, 0, sizeof *rep);
+  if (!section || !out) return gr_fail(e, GR_EARG, "hatch: section and layer must not be NULL");
+  gr_rings *reg = gr_rings_new();
+  gr_layer *cl = gr_layer_new(out->z), *hl = gr_layer_new(out->z);
+  int rc = (!reg || !cl || !hl) ? gr_fail(e, GR_EMEM, "hatch: out of memory") : GR_OK;
+  if (rc == GR_OK) rc = contours_region(section, o, cl, reg, rep, e);
+  if (rc == GR_OK) rc = gr_hatch_region(reg, o, hl, rep, e);
+  if (rc == GR_OK) {
+    out->thin_walls += cl->thin_walls;
+    cl->thin_walls = 0;
+    gr_layer *first = o->contour_first ? cl : hl, *second = o->contour_first ? hl : cl;
+    if (gr_layer_append(out, first, 0, 0) || gr_layer_append(out, second, 0, 0))
+      rc = gr_fail(e, GR_EMEM, "hatch: out of memory");
+  }
+  gr_rings_free(reg);
   gr_layer_free(cl); gr_layer_free(hl);
+  return rc;
+}
+
+int gr_hatch_contours(const gr_rings *section, const gr_hatch_opts *o, gr_layer *out, gr_rings *region,
+                      gr_hatch_report *rep, gr_err *e) {
+  gr_hatch_report dummy;
+  if (!rep) rep = &dummy;
+  memset(rep, 0, sizeof *rep);
+  if (!section || !out || !region) return gr_fail(e, GR_EARG, "hatch: section, layer and region must not be NULL");
+  gr_layer *cl = gr_layer_new(out->z);
+  int rc = cl ? contours_region(section, o, cl, region, rep, e) : gr_fail(e, GR_EMEM, "hatch: out of memory");
+  if (rc == GR_OK) {
+    out->thin_walls += cl->thin_walls;
+    cl->thin_walls = 0;
+    if (gr_layer_append(out, cl, 0, 0)) rc = gr_fail(e, GR_EMEM, "hatch: out of memory");
+  }
+  gr_layer_free(cl);
   return rc;
 }

@@ -93,6 +93,13 @@ int gr_hatch_check(const gr_hatch_opts *o, gr_err *e);
 int gr_hatch_layer(const gr_rings *section, const gr_hatch_opts *o,
                    gr_layer *out, gr_hatch_report *rep, gr_err *e);
 
+/* Contours and thin-wall scans only (the blocks gr_hatch_layer gives before
+ * or after its hatches), and the hatch region (the inward offset of the
+ * section by rep->hatch_offset) into `region` (cleared first) instead of
+ * hatching it: each offset is computed once. */
+int gr_hatch_contours(const gr_rings *section, const gr_hatch_opts *o, gr_layer *out,
+                      gr_rings *region, gr_hatch_report *rep, gr_err *e);
+
 /* Infill only: hatch vectors of the given region (no offset applied), on
  * the global line family of o->angle. Appends to `out`; rep may be NULL
  * (its counters are added to, not reset). */

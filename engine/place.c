@@ -290,6 +290,7 @@ int gr_job_run(gr_job *j, const gr_job_run_opts *r, gr_err *e) {
   memset(&ba, 0, sizeof ba);
   ba.j = j;
   ba.kb = r->kb;
+  ba.kb_store = r->kb_store;
   ba.kbmu = &kbmu;
   ba.qualify = r->qualify;
   ba.qualify_ud = r->qualify_ud;

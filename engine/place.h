@@ -36,6 +36,8 @@ typedef struct gr_job_stats {
   int built;                   /* templates computed in this run */
   int reused;                  /* templates loaded from the knowledge base */
   int kb_corrupt;              /* knowledge-base records found corrupt (rebuilt) */
+  int kb_stored;               /* templates written to the knowledge base */
+  int kb_not_stored;           /* built but not written (kb_store policy) */
   size_t vectors[GR_NKINDS];   /* scan vectors per kind */
   double length[GR_NKINDS];    /* scan length per kind, mm */
   size_t jumps;                /* jumps (all lasers) */
@@ -128,8 +130,15 @@ typedef void (*gr_progress_fn)(void *ud, const char *stage, long done, long tota
 typedef int (*gr_qualify_fn)(void *ud, const char *key, const double quality[4], long thin_walls,
                              char *why, size_t n);
 typedef struct gr_kb gr_kb;
+/* Which built templates go to the knowledge base (kb_store=): */
+enum gr_kb_store {
+  GR_KB_STORE_REUSED = 0,  /* those of classes with more than one voxel (default) */
+  GR_KB_STORE_ALL = 1,     /* every one (trimmed classes are never stored) */
+  GR_KB_STORE_NONE = 2     /* none: the knowledge base is only read */
+};
 typedef struct gr_job_run_opts {
   gr_kb *kb;               /* knowledge base, or NULL */
+  int kb_store;            /* enum gr_kb_store */
   int direct;              /* 1: kb=off, every voxel computed directly */
   int first, last;         /* layer range, 1-based inclusive; 0 = all */
   gr_layer_sink sink;      /* receives each layer in order (main thread) */

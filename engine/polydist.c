@@ -29,8 +29,9 @@ static int left_of(const double *e4, double x, double y) {
 
 /* Nearest edge to (x, y) among edges within rmax (searching rings of buckets
  * outward). Returns the squared distance (INFINITY if none within rmax) and
- * the edge and parameter. */
-static double pd_nearest(const poly_dist *d, double x, double y, double rmax,
+ * the edge and parameter. With `any`, returns at the first edge whose
+ * distance is <= rmax (a yes/no query: not the nearest). */
+static double pd_nearest(const poly_dist *d, double x, double y, double rmax, int any,
                          size_t *edge, double *tpar) {
   double best = INFINITY;
   int ci = (int)floor((x - d->lo[0]) / d->bs), cj = (int)floor((y - d->lo[1]) / d->bs);
@@ -53,6 +54,7 @@ static double pd_nearest(const poly_dist *d, double x, double y, double rmax,
             if (t > 1) t = 1;
             double qx = p[0] + t * ex - x, qy = p[1] + t * ey - y, d2 = qx * qx + qy * qy;
             if (d2 < best) { best = d2; *edge = ed; *tpar = t; }
+            if (any && sqrt(d2) <= rmax) return d2;
           }
         }
         if (step == 0) break;
@@ -87,7 +89,7 @@ static double pd_signed(const poly_dist *d, double x, double y, double q[2]) {
   if (d->ne == 0) return INFINITY;
   size_t ed = 0;
   double t = 0, d2 = INFINITY;
-  for (double r = 2 * d->bs; !isfinite(d2); r *= 4) d2 = pd_nearest(d, x, y, r, &ed, &t);
+  for (double r = 2 * d->bs; !isfinite(d2); r *= 4) d2 = pd_nearest(d, x, y, r, 0, &ed, &t);
   const double *a = d->ab + 4 * ed;
   if (q) { q[0] = a[0] + t * (a[2] - a[0]); q[1] = a[1] + t * (a[3] - a[1]); }
   return pd_inside(d, ed, t, x, y) ? -sqrt(d2) : sqrt(d2);
@@ -332,6 +334,14 @@ void gr_polydist_free(gr_polydist *p) {
 }
 
 double gr_polydist_at(const gr_polydist *p, double x, double y, double q[2]) { return pd_signed(&p->d, x, y, q); }
+
+int gr_polydist_within(const gr_polydist *p, double x, double y, double r) {
+  size_t ed;
+  double t;
+  if (p->d.ne == 0 || !(r >= 0)) return 0;
+  double d2 = pd_nearest(&p->d, x, y, r, 1, &ed, &t);
+  return isfinite(d2) && sqrt(d2) <= r;
+}
 
 int gr_polydist_grid(const gr_polydist *p, double x0, double y0, double h, int nx, int ny,
                      double rmax, double *v, gr_err *e) {

@@ -233,7 +233,8 @@ int gr_tmpl_layers(const gr_tmpl_in *in, gr_tmpl *t, const gr_field *f, const gr
     gr_layer_clear(tmp, 0);
     gr_hatch_report rep;
     memset(&rep, 0, sizeof rep);
-    if ((rc = gr_hatch_layer(tl->section, &ho, tmp, &rep, e))) break;
+    /* contours, thin walls and the hatch region from one set of offsets */
+    if ((rc = gr_hatch_contours(tl->section, &ho, tmp, tl->region, &rep, e))) break;
     for (size_t b = 0; b < tmp->nb && rc == GR_OK; b++) {
       const gr_block *bk = &tmp->b[b];
       if (bk->kind == GR_HATCH) continue;
@@ -242,7 +243,6 @@ int gr_tmpl_layers(const gr_tmpl_in *in, gr_tmpl *t, const gr_field *f, const gr
         rc = gr_fail(e, GR_EMEM, "out of memory");
     }
     tl->paths->thin_walls = rep.thin_walls;
-    if (rc == GR_OK) rc = offset_fine(tl->section, rep.hatch_offset, h, tl->region, e);
     /* hatch ends need no sub-micrometre region: fewer edges to scan per instance */
     if (rc == GR_OK && gr_rings_simplify(tl->region, REGION_TOL)) rc = gr_fail(e, GR_EMEM, "out of memory");
     if (rc == GR_OK && face_lines(opt, tl)) rc = gr_fail(e, GR_EMEM, "out of memory");

@@ -45,6 +45,8 @@ M.PARAMS = {
   { "assign", "balance", { choices = { "balance", "zones" }, allow = FN, help = "laser assignment: balance (scan time) or zones" } },
   { "sequence", "raster", { choices = sequence.names, allow = FN, help = "order of the islands of a layer" } },
   { "kb", "", { help = "knowledge-base directory; empty: the default cache; off: compute every voxel directly" } },
+  { "kb_store", "reused", { choices = { "all", "reused", "none" },
+    help = "templates written to the knowledge base: all, reused (classes of more than one voxel) or none" } },
   { "format", "ascii", { choices = { "ascii", "binary", "binary-long", "ovf" },
     help = "output format: ascii CLI, binary CLI (short form when the part fits), binary-long CLI, ovf (Open Vector Format)" } },
   { "res", 40, { integer = true, min = 4, max = 400, help = "marching-cubes samples per cell edge for the surface H" } },
@@ -278,7 +280,7 @@ local function run(p, out)
   local st, kept = job:run {
     output = out, format = format, styles = styles, name = out and out:match("([^/]+)$"),
     jump_delay = machine.jump_delay, polygon_delay = machine.polygon_delay, kb = kb ~= "off" and (kb or true) or false,
-    direct = kb == "off", first = first, last = last, keep = keep, split = p.split,
+    direct = kb == "off", first = first, last = last, keep = keep, split = p.split, kb_store = p.kb_store,
     quiet = gradus.quiet(), qualify = type(p.qualify) == "function" and p.qualify or nil,
   }
   if st.templates.unqualified > 0 and not gradus.quiet() then

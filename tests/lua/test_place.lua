@@ -270,7 +270,7 @@ t.test("templates carry verify() figures and are qualified by the targets and a 
     return j
   end
   local seen = {}
-  local st = qjob {}:run { output = tmp .. "/q.cli", kb = kb, qualify = function(q)
+  local st = qjob {}:run { output = tmp .. "/q.cli", kb = kb, kb_store = "all", qualify = function(q)
     seen[#seen + 1] = q
     return #seen > 1, "the recipe refuses the first"
   end }

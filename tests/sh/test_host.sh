@@ -72,7 +72,7 @@ out=$($G run recipes/lattice.lua -D cells=1,1,1 -D kb=off -D machine="$d/bad.yam
 expect "inverted laser field named" "bad.yaml.*lasers\[1\]\.field.*lo must be below hi" "$out"
 [ $rc != 0 ] && [ ! -e "$d/bad.cli" ] && pass "bad profile: exit non-zero, no CLI" || fail "bad profile" "rc=$rc"
 # gradus kb: the directory positional or as --dir; show, verify, prune; bad arguments
-$G run recipes/lattice.lua -D cells=1,1,1 -D kb="$d/kbc" -D layers=1:3 -o "$d/kbc.cli" -q >/dev/null 2>&1
+$G run recipes/lattice.lua -D cells=1,1,1 -D kb="$d/kbc" -D kb_store=all -D layers=1:3 -o "$d/kbc.cli" -q >/dev/null 2>&1
 out=$($G kb list "$d/kbc" 2>&1); expect "kb list DIR" "knowledge base $d/kbc: 1 templates" "$out"
 out=$($G kb list --dir "$d/kbc" 2>&1); expect "kb list --dir DIR" "knowledge base $d/kbc: 1 templates" "$out"
 key=$($G kb list "$d/kbc" | awk 'NR==2{print $1}')

@@ -1,0 +1,54 @@
+-- Continuous grading at part scale (issue 14): an n x n x n P sheet of 2 mm
+-- cells whose half-thickness varies smoothly over the whole part,
+--   T = 0.1 + 0.04*sin(x/3)*cos(y/2.5) + 0.004*z   (every voxel unique)
+-- against the same part at constant thickness 0.1 (one voxel class), each
+-- size measured in the same run, each job a separate process with a fresh
+-- knowledge base. Reports the CPU time of the process (user + system, from
+-- the shell's `times`: meaningful on a loaded machine where wall time is
+-- not), CPU per unique voxel-layer, peak RSS and the continuous/constant
+-- CPU ratio. `-D sizes=3,4,6` adds the issue's 6 x 6 x 6 (about a minute
+-- of CPU); `-D extra='-D kb_store=all'` passes options to every job.
+local sizes_s = gradus.param("sizes", "3,4", { help = "cube sizes n (cells per side), comma-separated" })
+local extra = gradus.param("extra", "", { help = "more -D options for every job" })
+local exe = gradus.root .. "/build/gradus"
+local tmp = os.getenv("TMPDIR") or "/tmp"
+local dir = tmp .. "/gradus_bench_continuous." .. tostring(os.time()) .. tostring(math.random(1e6))
+gradus.mkdir(dir)
+local CONT = "0.1+0.04*sin(x/3)*cos(y/2.5)+0.004*z"
+
+-- one job; returns its stats, its CPU seconds (user + system of the child) and wall seconds
+local function run(name, n, thickness)
+  local stats, cpu = dir .. "/" .. name .. ".yaml", dir .. "/" .. name .. ".cpu"
+  local cmd = ("'%s' run '%s/recipes/lattice.lua' -D cells=%d,%d,%d -D format=binary -D 'thickness=%s' " ..
+    "-D kb='%s/kb_%s' %s -q -o '%s/%s.cli' --stats '%s'")
+    :format(exe, gradus.root, n, n, n, thickness, dir, name, extra, dir, name, stats)
+  local t0 = gradus.clock()
+  local ok = os.execute(("bash -c %q > '%s'"):format(cmd .. " >/dev/null && times", cpu))
+  local wall = gradus.clock() - t0
+  if not ok then error("benchmark run '" .. name .. "' failed") end
+  local f = assert(io.open(cpu))
+  local text = f:read("a")
+  f:close()
+  -- `times` prints the shell's own times, then its children's: "0m1.5s 0m0.1s"
+  local m1, s1, m2, s2 = text:match("\n(%d+)m([%d.]+)s%s+(%d+)m([%d.]+)s")
+  if not m1 then error("cannot read the CPU time of run '" .. name .. "': " .. text) end
+  return gradus.yaml.load(stats), m1 * 60 + s1 + m2 * 60 + s2, wall
+end
+
+print(("continuous grading, P sheet, cell 2 mm, layer 0.04, exact mode, res 40, T = %s %s"):format(CONT, extra))
+print("  size     job         classes  built  stored   CPU s   wall s  ms CPU/unique voxel-layer  peak RSS MB  CPU ratio")
+for s in sizes_s:gmatch("%d+") do
+  local n = tonumber(s)
+  local const, ccpu, cwall = run("const" .. n, n, "0.1")
+  local cont, tcpu, twall = run("cont" .. n, n, CONT)
+  for _, r in ipairs({ { "constant", const, ccpu, cwall }, { "continuous", cont, tcpu, twall } }) do
+    local st = r[2]
+    local per_voxel = st.layers / n -- local layers of one voxel
+    local vl = st.templates.unique * per_voxel
+    local stored = st.templates.stored and tostring(st.templates.stored) or "-"
+    print(("  %dx%dx%d  %-10s  %7d  %5d  %6s  %6.2f  %7.2f  %24.2f  %11.0f  %s"):format(n, n, n, r[1],
+      st.templates.unique, st.templates.built, stored, r[3], r[4], 1000 * r[3] / vl, st.peak_rss_mb,
+      r[1] == "continuous" and ("%.1fx"):format(tcpu / ccpu) or ""))
+  end
+end
+os.execute("rm -rf '" .. dir .. "'")
