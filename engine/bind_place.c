@@ -208,6 +208,7 @@ static int l_machine(lua_State *L) {
   m.jump_delay = gr_opt_number(L, 2, "jump_delay", 0);
   m.polygon_delay = gr_opt_number(L, 2, "polygon_delay", 0);
   m.recoat_time = gr_opt_number(L, 2, "recoat_time", 0);
+  m.stitch = gr_opt_number(L, 2, "stitch", GR_STITCH_DEFAULT);
   gr_err e;
   gr_err_clear(&e);
   if (gr_job_set_machine(j, &m, &e)) return gr_lua_error(L, &e);
@@ -357,6 +358,7 @@ static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) 
     set_num(L, "relative_density", st->solid_area / (st->layers * o->n[0] * (double)o->n[1] * o->cell * o->cell));
   set_num(L, "solid_volume_mm3", st->solid_area * o->layer);
   set_int(L, "dropped_short_vectors", st->dropped);
+  set_int(L, "split_loops", st->split_loops);
   lua_newtable(L);
   set_num(L, "classify", st->seconds[0]);
   set_num(L, "templates", st->seconds[1]);

@@ -11,10 +11,15 @@ static double est_time(const gr_machine *m, int l, double lc, double lh) {
   return lc / m->speed[l][GR_CONTOUR] + lh / m->speed[l][GR_HATCH];
 }
 
+int gr_lasers_reach_box(const gr_machine *m, int l, const double lo[2], const double hi[2]) {
+  return !(lo[0] < m->lo[l][0] - EPS || lo[1] < m->lo[l][1] - EPS || hi[0] > m->hi[l][0] + EPS ||
+           hi[1] > m->hi[l][1] + EPS);
+}
+
 /* Can laser l scan the whole voxel with min corner o? */
 static int laser_reaches(const gr_machine *m, int l, const double o[3], double cell) {
-  return !(o[0] < m->lo[l][0] - EPS || o[1] < m->lo[l][1] - EPS || o[0] + cell > m->hi[l][0] + EPS ||
-           o[1] + cell > m->hi[l][1] + EPS);
+  double hi[2] = {o[0] + cell, o[1] + cell};
+  return gr_lasers_reach_box(m, l, o, hi);
 }
 
 /* Assign lasers to the voxel slots of a layer: fixed ones as given; the

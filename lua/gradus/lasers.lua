@@ -1,7 +1,8 @@
 -- gradus.lasers: machine profiles (YAML) and laser assignment rules.
 -- A machine profile (see recipes/machine.yaml and doc/formats.md):
 --   lasers: [{name, field: {lo: [x,y], hi: [x,y]}, contour|hatch|edge: {power, speed}}]
---   jump_speed (mm/s), jump_delay (s per jump), polygon_delay (s per block)
+--   jump_speed (mm/s), jump_delay (s per jump), polygon_delay (s per block),
+--   recoat_time (s per layer), stitch (mm: overlap where two lasers meet)
 local gradus = require "gradus"
 local strict = require "gradus.strict"
 local M = {}
@@ -9,7 +10,7 @@ local M = {}
 -- the keys a machine profile may have, per mapping (anything else is an error)
 local function set(...) local t = {} for _, k in ipairs({ ... }) do t[k] = true end return t end
 local KEYS = {
-  machine = set("name", "plate", "jump_speed", "jump_delay", "polygon_delay", "recoat_time", "lasers"),
+  machine = set("name", "plate", "jump_speed", "jump_delay", "polygon_delay", "recoat_time", "stitch", "lasers"),
   laser = set("name", "field", "contour", "hatch", "edge"),
   box = set("lo", "hi"),
   style = set("power", "speed"),
@@ -45,6 +46,16 @@ local function delay(src, what, v)
   return v
 end
 
+-- The overlap of two lasers' scans where they meet (mm): a closed contour no
+-- single laser reaches, and hatch lines cut at a boundary between lasers,
+-- overlap by this much. Default 0.5 mm (doc/formats.md gives the source).
+M.STITCH_DEFAULT = 0.5
+function M.stitch(src, v)
+  if v == nil then return M.STITCH_DEFAULT end
+  if type(v) ~= "number" or not (v >= 0 and v <= 10) then bad(src, "stitch", "must be in [0, 10] mm, got %s", tostring(v)) end
+  return v
+end
+
 --- M.normalize(profile, source [, marks]) -> machine with every field
 -- checked and defaults filled. Errors name the source and the field; an
 -- unknown key is an error too, at its line and column when marks (from
@@ -61,6 +72,7 @@ function M.normalize(p, src, marks)
     jump_delay = delay(src, "jump_delay", p.jump_delay or 0),
     polygon_delay = delay(src, "polygon_delay", p.polygon_delay or 0),
     recoat_time = delay(src, "recoat_time", p.recoat_time or 0),
+    stitch = M.stitch(src, p.stitch),
     lasers = {},
   }
   for i, l in ipairs(p.lasers) do
