@@ -454,6 +454,12 @@ static int l_run(lua_State *L) {
     h.lo[a] = o->origin[a];
     h.hi[a] = o->origin[a] + o->n[a] * o->cell;
   }
+  /* the part's true extent: extent = {x, y, z} max corner (mm), and the
+   * heights of the layers written */
+  if (lua_getfield(L, 2, "extent") == LUA_TTABLE) gr_opt_vec(L, 2, "extent", 3, h.hi);
+  lua_pop(L, 1);
+  h.lo[2] = o->origin[2] + (ga - 1) * o->layer;
+  if (o->origin[2] + gb * o->layer < h.hi[2]) h.hi[2] = o->origin[2] + gb * o->layer;
   int rc = GR_OK;
   gr_kb *kb = NULL;
   if (kbdir[0] && !r.direct) {

@@ -22,6 +22,8 @@ M.PARAMS = {
   { "surface", "primitive", { choices = SURFACES, help = "TPMS surface of the cells" } },
   { "cell", 2.0, { unit = "mm", min = 0.1, max = 100, help = "cell (voxel) size L" } },
   { "cells", "2,2,1", { n = 3, integer = true, min = 1, max = 100000, help = "cells along x, y, z" } },
+  { "size", "", { n = 3, unit = "mm", min = 0.01, max = 100000, empty = true,
+    help = "part size x, y, z instead of cells: the lattice is cut at the faces (empty: cells)" } },
   { "origin", "0,0,0", { n = 3, unit = "mm", min = -1000, max = 1000, help = "min corner x, y, z of the box of cells" } },
   { "level", 0.0, { min = -20, max = 20, help = "iso-level c of the TPMS (the surface phi = c)" } },
   { "kind", "sheet", { choices = { "sheet", "network" }, help = "sheet (a wall around the surface) or network (one side, grown)" } },
@@ -172,8 +174,9 @@ end
 function M.run(p, out)
   strict.action()
   p = checked(p)
-  local cells, origin = p.cells, p.origin
-  local domain = domain_of(p.domain, origin, cells, p.cell)
+  local box = require("gradus.part").box(p)
+  local cells, origin = box.cells, p.origin
+  local domain = box.domain(domain_of(p.domain, origin, cells, p.cell))
   local machine
   if p.machine ~= "" then
     machine = lasers.load(p.machine)
@@ -237,7 +240,8 @@ function M.run(p, out)
     end
   end
   if domain then job:domain(domain, { skin = p.skin or 0 }) end
-  local first, last = parse_range(p.layers, job:layers())
+  local first, last = parse_range(p.layers, box.layers or job:layers())
+  if box.layers and last > box.layers then last = box.layers end
   local keep = {}
   for item in tostring(p.pictures):gmatch("[^,]+") do keep[#keep + 1] = tonumber(item) end
   local checks = {}
@@ -252,7 +256,7 @@ function M.run(p, out)
   if out then gradus.mkdir(gradus.dirname(out)) end
   local st, kept = job:run {
     output = out, format = p.format, kb = kb ~= "off" and (kb or true) or false,
-    direct = kb == "off", first = first, last = last, keep = keep, split = p.split,
+    direct = kb == "off", first = first, last = last, keep = keep, split = p.split, extent = box.hi,
     quiet = gradus.quiet(), qualify = type(p.qualify) == "function" and p.qualify or nil,
   }
   if st.templates.unqualified > 0 and not gradus.quiet() then
