@@ -352,13 +352,20 @@ static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) 
   lua_setfield(L, -2, "lasers");
   set_num(L, "build_time_s", st->build_time);
   set_num(L, "balanced_time_s", st->balanced_time);
-  set_num(L, "balance_efficiency", st->build_time > 0 ? st->balanced_time / st->build_time : 1);
+  /* balance of the lasers' work (recoating, equal for all, left out) */
+  double busy = st->build_time - st->recoat_time;
+  set_num(L, "balance_efficiency", busy > 0 ? (st->balanced_time - st->recoat_time) / busy : 1);
   set_int(L, "thin_walls", st->thin_walls);
   if (st->layers > 0)
     set_num(L, "relative_density", st->solid_area / (st->layers * o->n[0] * (double)o->n[1] * o->cell * o->cell));
   set_num(L, "solid_volume_mm3", st->solid_area * o->layer);
   set_int(L, "dropped_short_vectors", st->dropped);
   set_int(L, "split_loops", st->split_loops);
+  set_num(L, "recoat_time_s", st->recoat_time);
+  double lt = 0; /* all lasers' time: marking plus jumps and delays */
+  for (int la = 0; la < GR_MAX_LASERS; la++) lt += st->laser_time[la];
+  set_num(L, "scan_time_s", lt - st->jump_time);
+  set_num(L, "jump_time_s", st->jump_time);
   lua_newtable(L);
   set_num(L, "classify", st->seconds[0]);
   set_num(L, "templates", st->seconds[1]);

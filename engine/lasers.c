@@ -114,6 +114,7 @@ void gr_lasers_account(const gr_machine *m, const gr_layer *l, gr_job_stats *st)
   double makespan = 0, total = 0;
   for (int la = 0; la < m->n; la++) {
     double t = jl[la] / m->jump_speed + nj[la] * m->jump_delay + nb[la] * m->polygon_delay;
+    st->jump_time += t;
     for (int k = 0; k < GR_NKINDS; k++) {
       t += len[la][k] / m->speed[la][k];
       st->length[k] += len[la][k];
@@ -126,6 +127,7 @@ void gr_lasers_account(const gr_machine *m, const gr_layer *l, gr_job_stats *st)
     total += t;
   }
   st->build_time += makespan + m->recoat_time;
+  st->recoat_time += m->recoat_time;
   st->balanced_time += total / m->n + m->recoat_time;
   st->thin_walls += l->thin_walls;
   st->solid_area += l->area;
@@ -143,6 +145,8 @@ void gr_lasers_add(gr_job_stats *st, const gr_job_stats *l) {
   st->jumps += l->jumps;
   st->jump_length += l->jump_length;
   st->build_time += l->build_time;
+  st->jump_time += l->jump_time;
+  st->recoat_time += l->recoat_time;
   st->balanced_time += l->balanced_time;
   st->thin_walls += l->thin_walls;
   st->solid_area += l->solid_area;

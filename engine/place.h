@@ -46,7 +46,9 @@ typedef struct gr_job_stats {
   double jump_length;          /* mm */
   double laser_time[GR_MAX_LASERS];   /* estimated scan time per laser, s */
   double laser_length[GR_MAX_LASERS]; /* scan length per laser, mm */
-  double build_time;           /* sum over layers of the slowest laser, s */
+  double build_time;           /* sum over layers of the slowest laser, plus recoating, s */
+  double jump_time;            /* all lasers' jumps and delays, s (part of their times) */
+  double recoat_time;          /* recoating, s (layers x the machine's recoat time) */
   double balanced_time;        /* the same with perfect balance, s */
   long thin_walls;             /* regions scanned by the thin-wall rule */
   int verified;                /* templates verified in this run (opts.verify) */

@@ -56,6 +56,11 @@ function M.stitch(src, v)
   return v
 end
 
+-- Recoating time per layer (s) when the profile gives none: 12 s, the
+-- per-layer recoat of the additive.tools build-time estimator's L-PBF preset
+-- (doc/formats.md); a machine's own value belongs in its profile.
+M.RECOAT_DEFAULT = 12
+
 --- M.normalize(profile, source [, marks]) -> machine with every field
 -- checked and defaults filled. Errors name the source and the field; an
 -- unknown key is an error too, at its line and column when marks (from
@@ -71,7 +76,7 @@ function M.normalize(p, src, marks)
     jump_speed = positive(src, "jump_speed", p.jump_speed or 5000),
     jump_delay = delay(src, "jump_delay", p.jump_delay or 0),
     polygon_delay = delay(src, "polygon_delay", p.polygon_delay or 0),
-    recoat_time = delay(src, "recoat_time", p.recoat_time or 0),
+    recoat_time = delay(src, "recoat_time", p.recoat_time or M.RECOAT_DEFAULT),
     stitch = M.stitch(src, p.stitch),
     lasers = {},
   }
@@ -152,6 +157,44 @@ function M.zones(m, xmin, xmax)
     end
     return best
   end
+end
+
+--- M.warnings(machine, stats, part) -> list of messages: each laser with no
+-- work or under 10 % of the scan time, with the reason. part = {origin =
+-- {x, y, z}, cells = {nx, ny, nz}, cell = L (mm), assign = "balance" |
+-- "zones" | function}: the voxel columns the lasers could reach.
+function M.warnings(m, st, part)
+  local out = {}
+  if #m.lasers < 2 then return out end
+  local L, o, c = part.cell, part.origin, part.cells
+  local ncol = c[1] * c[2]
+  for i, las in ipairs(m.lasers) do
+    local share = st.lasers[i] and st.lasers[i].share or 0
+    if share < 0.1 then
+      local reach = 0
+      for jj = 0, c[2] - 1 do
+        for ii = 0, c[1] - 1 do
+          local x0, y0 = o[1] + ii * L, o[2] + jj * L
+          if reaches(las, x0, y0, x0 + L, y0 + L) then reach = reach + 1 end
+        end
+      end
+      local why
+      local f = las.field
+      if reach == 0 then
+        why = ("its field [%g, %g] x [%g, %g] mm does not reach the part [%g, %g] x [%g, %g] mm (reach)"):format(
+          f.lo[1], f.hi[1], f.lo[2], f.hi[2], o[1], o[1] + c[1] * L, o[2], o[2] + c[2] * L)
+      elseif reach < ncol then
+        why = ("its field reaches only %d of the part's %d voxel columns (reach)"):format(reach, ncol)
+      elseif part.assign == "zones" then
+        why = "assign=zones: its zone of the part's x-range holds little of the lattice (zones)"
+      else
+        why = "the voxel rule fixed the lasers of most voxels (rule)"
+      end
+      out[#out + 1] = ("laser %d (%s) %s (%.1f %% of the scan time): %s"):format(i, las.name,
+        share == 0 and "gets no work" or "gets under 10 % of the work", 100 * share, why)
+    end
+  end
+  return out
 end
 
 return M

@@ -235,6 +235,8 @@ function M.run(p, out)
             laser = laser,
             seq = r.seq or seqf(i, j, k, nx, ny),
           })
+        else
+          job:voxel(i, j, k, { spec = 0 }) -- empty (voxels start with the first spec)
         end
       end
     end
@@ -263,6 +265,11 @@ function M.run(p, out)
     io.stderr:write(("gradus: %d template(s) not qualified (%s)\n"):format(st.templates.unqualified,
       st.templates.unqualified_reason or ""))
   end
+  st.warnings = lasers.warnings(machine, st, { origin = origin, cells = cells, cell = p.cell, assign = p.assign })
+  for _, w in ipairs(st.warnings) do
+    if not gradus.quiet() then io.stderr:write("gradus: warning: " .. w .. "\n") end
+  end
+  if #st.warnings == 0 then st.warnings = nil end
   -- manifest: every build style with laser, kind, power, speed
   if out then
     local styles = {}
