@@ -8,14 +8,7 @@
 #include "hatch.h"
 #include "lasers.h"
 
-struct gr_asm_seg {
-  double x0, y0, x1, y1; /* global, mm */
-  long line;             /* index on the global line family */
-  double s0, s1;         /* positions along the line direction (s0 < s1) */
-  int laser;
-  int voxel;             /* position in the row order */
-};
-typedef gr_asm_seg seg;
+typedef gr_asm_seg seg; /* stitch.h */
 
 
 void gr_asm_scratch_free(gr_asm_scratch *s) {
@@ -206,11 +199,66 @@ static int triple_cmp(const void *a, const void *b) {
   return (x > y) - (x < y);
 }
 
-/* Join open contour pieces whose end meets another's start (within tol, same
- * laser) into chains; closed chains become GR_CLOSED loops. Pieces come from
- * s->cont blocks [b0, b1); output appended to `out`. */
+/* Emit the joined pieces of s->cont blocks [b0, b0 + n) (links in s->link):
+ * closed blocks as they are; chains from heads, then cycles, each scanned by
+ * one laser or split between lasers (stitch.h). */
+static int emit_chains(gr_asm_scratch *s, size_t b0, size_t n, gr_layer *out, const int *slot_laser,
+                       const gr_machine *mach, long *split, gr_err *e) {
+  gr_layer *c = s->cont;
+  long *next = s->link, *prev = s->link + n, *used = s->link + 2 * n;
+  size_t *ps = malloc((n + 1) * sizeof *ps);
+  int *pl = malloc(n * sizeof *pl);
+  if (!ps || !pl) { free(ps); free(pl); return gr_fail(e, GR_EMEM, "out of memory"); }
+  int rc = GR_OK;
+  for (int pass = 0; pass < 2 && rc == GR_OK; pass++) {
+    for (size_t i = 0; i < n && rc == GR_OK; i++) {
+      const gr_block *bk = &c->b[b0 + i];
+      if (used[i]) continue;
+      if (bk->shape != GR_OPEN) {
+        if (pass == 0) {
+          used[i] = 1;
+          rc = gr_layer_add(out, bk->shape, bk->kind, slot_laser[bk->laser], bk->dir, c->xy + 2 * bk->start, bk->n);
+        }
+        continue;
+      }
+      if (pass == 0 && prev[i] >= 0) continue; /* not a head */
+      /* walk the chain */
+      size_t m = 0, np = 0;
+      long q = (long)i;
+      int closed = 0;
+      while (q >= 0 && !used[q] && rc == GR_OK) {
+        used[q] = 1;
+        const gr_block *pb = &c->b[b0 + q];
+        size_t skip = m > 0 ? 1 : 0; /* drop the shared joint point */
+        if (gr_grow(&s->pts, &s->cappts, m + pb->n, 2 * sizeof(double))) { rc = GR_EMEM; break; }
+        if (skip) { /* average the joint: both ends are within tol */
+          s->pts[2 * (m - 1)] = 0.5 * (s->pts[2 * (m - 1)] + c->xy[2 * pb->start]);
+          s->pts[2 * (m - 1) + 1] = 0.5 * (s->pts[2 * (m - 1) + 1] + c->xy[2 * pb->start + 1]);
+        }
+        ps[np] = m - skip;
+        pl[np++] = slot_laser[pb->laser];
+        memcpy(s->pts + 2 * m, c->xy + 2 * (pb->start + skip), (pb->n - skip) * 2 * sizeof(double));
+        m += pb->n - skip;
+        q = next[q];
+        if (q == (long)i) closed = 1;
+      }
+      if (rc) break;
+      ps[np] = m - 1;
+      gr_stitch_chain ch = {s->pts, m, closed, bk->kind, bk->dir, ps, pl, np};
+      rc = gr_stitch_chain_emit(mach, &ch, out, split);
+    }
+  }
+  free(ps);
+  free(pl);
+  return rc ? gr_fail(e, GR_EMEM, "out of memory") : GR_OK;
+}
+
+/* Join open contour pieces whose end meets another's start (within tol)
+ * into chains; closed chains become GR_CLOSED loops, each on one laser where
+ * one reaches it (stitch.h). Pieces come from s->cont blocks [b0, b1);
+ * output appended to `out`. */
 static int join_contours(gr_asm_scratch *s, size_t b0, size_t b1, double tol, gr_layer *out,
-                         const int *slot_laser, gr_err *e) {
+                         const int *slot_laser, const gr_machine *m, long *split, gr_err *e) {
   gr_layer *c = s->cont;
   size_t n = b1 - b0;
   if (n == 0) return GR_OK;
@@ -249,7 +297,6 @@ static int join_contours(gr_asm_scratch *s, size_t b0, size_t b1, double tol, gr
     for (size_t r = lo; r < nopen && sx[3 * r] <= ex + tol; r++) {
       long cand = (long)sx[3 * r + 2];
       if (cand == i || prev[cand] >= 0) continue;
-      if (slot_laser[c->b[b0 + cand].laser] != slot_laser[bk->laser]) continue;
       if ((c->b[b0 + cand].dir == GR_DIR_THIN) != (bk->dir == GR_DIR_THIN)) continue;
       double dx = sx[3 * r] - ex, dy = sx[3 * r + 1] - ey, d2 = dx * dx + dy * dy;
       if (d2 <= bd) { bd = d2; best = cand; }
@@ -258,58 +305,7 @@ static int join_contours(gr_asm_scratch *s, size_t b0, size_t b1, double tol, gr
   }
   free(sx);
   free(idx);
-  /* emit: closed blocks as they are; chains from heads, then cycles */
-  for (int pass = 0; pass < 2; pass++) {
-    for (size_t i = 0; i < n; i++) {
-      const gr_block *bk = &c->b[b0 + i];
-      if (used[i]) continue;
-      if (bk->shape != GR_OPEN) {
-        if (pass == 0) {
-          used[i] = 1;
-          if (gr_layer_add(out, bk->shape, bk->kind, slot_laser[bk->laser], bk->dir, c->xy + 2 * bk->start, bk->n))
-            return gr_fail(e, GR_EMEM, "out of memory");
-        }
-        continue;
-      }
-      if (pass == 0 && prev[i] >= 0) continue; /* not a head */
-      /* walk the chain */
-      size_t m = 0;
-      long q = (long)i;
-      int closed = 0;
-      while (q >= 0 && !used[q]) {
-        used[q] = 1;
-        const gr_block *pb = &c->b[b0 + q];
-        size_t skip = m > 0 ? 1 : 0; /* drop the shared joint point */
-        if (gr_grow(&s->pts, &s->cappts, m + pb->n, 2 * sizeof(double))) return gr_fail(e, GR_EMEM, "out of memory");
-        if (skip) { /* average the joint: both ends are within tol */
-          s->pts[2 * (m - 1)] = 0.5 * (s->pts[2 * (m - 1)] + c->xy[2 * pb->start]);
-          s->pts[2 * (m - 1) + 1] = 0.5 * (s->pts[2 * (m - 1) + 1] + c->xy[2 * pb->start + 1]);
-        }
-        memcpy(s->pts + 2 * m, c->xy + 2 * (pb->start + skip), (pb->n - skip) * 2 * sizeof(double));
-        m += pb->n - skip;
-        q = next[q];
-        if (q == (long)i) closed = 1;
-      }
-      if (closed && bk->dir == GR_DIR_THIN) { /* a thin-wall loop stays an open, tagged line */
-        if (gr_layer_add(out, GR_OPEN, bk->kind, slot_laser[bk->laser], GR_DIR_THIN, s->pts, m))
-          return gr_fail(e, GR_EMEM, "out of memory");
-      } else if (closed) {
-        s->pts[0] = 0.5 * (s->pts[0] + s->pts[2 * (m - 1)]);
-        s->pts[1] = 0.5 * (s->pts[1] + s->pts[2 * (m - 1) + 1]);
-        s->pts[2 * (m - 1)] = s->pts[0];
-        s->pts[2 * (m - 1) + 1] = s->pts[1];
-        double a = 0;
-        for (size_t k = 0; k + 1 < m; k++)
-          a += s->pts[2 * k] * s->pts[2 * k + 3] - s->pts[2 * k + 2] * s->pts[2 * k + 1];
-        if (gr_layer_add(out, GR_CLOSED, bk->kind, slot_laser[bk->laser], a > 0 ? 1 : 0, s->pts, m))
-          return gr_fail(e, GR_EMEM, "out of memory");
-      } else if (m >= 2) {
-        if (gr_layer_add(out, GR_OPEN, bk->kind, slot_laser[bk->laser], gr_clip_open_dir(bk->dir), s->pts, m))
-          return gr_fail(e, GR_EMEM, "out of memory");
-      }
-    }
-  }
-  return GR_OK;
+  return emit_chains(s, b0, n, out, slot_laser, m, split, e);
 }
 
 /* The voxels of layer g's row (slots in sequence order): template layers
@@ -411,6 +407,7 @@ static int join_hatches(gr_job *j, gr_asm_scratch *s, gr_layer *hat, gr_err *e) 
     }
   }
   s->nseg = w;
+  if (gr_stitch_hatches(&j->m, s->segs, s->nseg)) return gr_fail(e, GR_EMEM, "out of memory");
   long lastline = LONG_MIN;
   int flip = 0, lastlaser = -1;
   for (size_t r = 0; r < s->nseg; r++) {
@@ -436,7 +433,9 @@ static int emit_continuous(gr_job *j, gr_asm_scratch *s, gr_layer *out, gr_err *
   if (rc) { gr_layer_free(hat); return rc; }
   gr_layer *con = gr_layer_new(0);
   if (!con) { gr_layer_free(hat); return gr_fail(e, GR_EMEM, "out of memory"); }
-  rc = join_contours(s, 0, s->cont->nb, j->o.hatch / 4, con, s->vlas, e);
+  long split = 0;
+  rc = join_contours(s, 0, s->cont->nb, j->o.hatch / 4, con, s->vlas, &j->m, &split, e);
+  if (split) __atomic_fetch_add(&j->st_split, split, __ATOMIC_RELAXED);
   for (int la = 0; la < j->m.n && rc == GR_OK; la++) {
     for (int pass = 0; pass < 2 && rc == GR_OK; pass++) {
       const gr_layer *src = ((pass == 0) == (cf != 0)) ? con : hat;

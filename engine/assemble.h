@@ -14,9 +14,10 @@
 #ifndef GR_ASSEMBLE_H
 #define GR_ASSEMBLE_H
 #include "job.h"
+#include "stitch.h"
 
 /* One worker's scratch space (reused from layer to layer). */
-typedef struct gr_asm_seg gr_asm_seg;
+typedef gr_hseg gr_asm_seg;
 typedef struct gr_asm_scratch {
   gr_rings *rg;          /* region translated to global coordinates */
   gr_layer *hl;          /* hatch output of one voxel */

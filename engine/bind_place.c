@@ -232,6 +232,7 @@ static int l_machine(lua_State *L) {
   m.jump_delay = gr_opt_number(L, 2, "jump_delay", 0);
   m.polygon_delay = gr_opt_number(L, 2, "polygon_delay", 0);
   m.recoat_time = gr_opt_number(L, 2, "recoat_time", 0);
+  m.stitch = gr_opt_number(L, 2, "stitch", GR_STITCH_DEFAULT);
   gr_err e;
   gr_err_clear(&e);
   if (gr_job_set_machine(j, &m, &e)) return gr_lua_error(L, &e);
@@ -385,12 +386,20 @@ static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) 
   lua_setfield(L, -2, "lasers");
   set_num(L, "build_time_s", st->build_time);
   set_num(L, "balanced_time_s", st->balanced_time);
-  set_num(L, "balance_efficiency", st->build_time > 0 ? st->balanced_time / st->build_time : 1);
+  /* balance of the lasers' work (recoating, equal for all, left out) */
+  double busy = st->build_time - st->recoat_time;
+  set_num(L, "balance_efficiency", busy > 0 ? (st->balanced_time - st->recoat_time) / busy : 1);
   set_int(L, "thin_walls", st->thin_walls);
   if (st->layers > 0)
     set_num(L, "relative_density", st->solid_area / (st->layers * o->n[0] * (double)o->n[1] * o->cell * o->cell));
   set_num(L, "solid_volume_mm3", st->solid_area * o->layer);
   set_int(L, "dropped_short_vectors", st->dropped);
+  set_int(L, "split_loops", st->split_loops);
+  set_num(L, "recoat_time_s", st->recoat_time);
+  double lt = 0; /* all lasers' time: marking plus jumps and delays */
+  for (int la = 0; la < GR_MAX_LASERS; la++) lt += st->laser_time[la];
+  set_num(L, "scan_time_s", lt - st->jump_time);
+  set_num(L, "jump_time_s", st->jump_time);
   lua_newtable(L);
   set_num(L, "classify", st->seconds[0]);
   set_num(L, "templates", st->seconds[1]);
@@ -517,6 +526,12 @@ static int l_run(lua_State *L) {
     h.lo[a] = o->origin[a];
     h.hi[a] = o->origin[a] + o->n[a] * o->cell;
   }
+  /* the part's true extent: extent = {x, y, z} max corner (mm), and the
+   * heights of the layers written */
+  if (lua_getfield(L, 2, "extent") == LUA_TTABLE) gr_opt_vec(L, 2, "extent", 3, h.hi);
+  lua_pop(L, 1);
+  h.lo[2] = o->origin[2] + (ga - 1) * o->layer;
+  if (o->origin[2] + gb * o->layer < h.hi[2]) h.hi[2] = o->origin[2] + gb * o->layer;
   /* binary: the short form (16-bit coordinates) when the part's box fits at the unit */
   h.short_form = !strcmp(format, "binary");
   for (int a = 0; a < 3; a++) h.short_form &= h.lo[a] >= 0 && h.hi[a] / h.units <= 65535;

@@ -47,6 +47,7 @@ struct gr_job {
   int *rowcount;
   int rowlen;         /* nx*ny */
   long st_dropped;
+  long st_split;      /* closed contours split between lasers (stitch.h) */
 };
 
 #endif

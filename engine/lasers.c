@@ -11,10 +11,15 @@ static double est_time(const gr_machine *m, int l, double lc, double lh) {
   return lc / m->speed[l][GR_CONTOUR] + lh / m->speed[l][GR_HATCH];
 }
 
+int gr_lasers_reach_box(const gr_machine *m, int l, const double lo[2], const double hi[2]) {
+  return !(lo[0] < m->lo[l][0] - EPS || lo[1] < m->lo[l][1] - EPS || hi[0] > m->hi[l][0] + EPS ||
+           hi[1] > m->hi[l][1] + EPS);
+}
+
 /* Can laser l scan the whole voxel with min corner o? */
 static int laser_reaches(const gr_machine *m, int l, const double o[3], double cell) {
-  return !(o[0] < m->lo[l][0] - EPS || o[1] < m->lo[l][1] - EPS || o[0] + cell > m->hi[l][0] + EPS ||
-           o[1] + cell > m->hi[l][1] + EPS);
+  double hi[2] = {o[0] + cell, o[1] + cell};
+  return gr_lasers_reach_box(m, l, o, hi);
 }
 
 /* Assign lasers to the voxel slots of a layer: fixed ones as given; the
@@ -109,6 +114,7 @@ void gr_lasers_account(const gr_machine *m, const gr_layer *l, gr_job_stats *st)
   double makespan = 0, total = 0;
   for (int la = 0; la < m->n; la++) {
     double t = jl[la] / m->jump_speed + nj[la] * m->jump_delay + nb[la] * m->polygon_delay;
+    st->jump_time += t;
     for (int k = 0; k < GR_NKINDS; k++) {
       t += len[la][k] / m->speed[la][k];
       st->length[k] += len[la][k];
@@ -121,6 +127,7 @@ void gr_lasers_account(const gr_machine *m, const gr_layer *l, gr_job_stats *st)
     total += t;
   }
   st->build_time += makespan + m->recoat_time;
+  st->recoat_time += m->recoat_time;
   st->balanced_time += total / m->n + m->recoat_time;
   st->thin_walls += l->thin_walls;
   st->solid_area += l->area;
@@ -138,6 +145,8 @@ void gr_lasers_add(gr_job_stats *st, const gr_job_stats *l) {
   st->jumps += l->jumps;
   st->jump_length += l->jump_length;
   st->build_time += l->build_time;
+  st->jump_time += l->jump_time;
+  st->recoat_time += l->recoat_time;
   st->balanced_time += l->balanced_time;
   st->thin_walls += l->thin_walls;
   st->solid_area += l->solid_area;

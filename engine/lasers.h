@@ -18,6 +18,8 @@
  * lengths, mm. Fails (GR_EARG) when no laser reaches a voxel. */
 int gr_lasers_assign(const gr_machine *m, const gr_grid *grid, const int *vlaser, const int *vox, int nslot,
                      const double *lc, const double *lh, int *las, gr_err *e);
+/* 1 if laser l's field holds the box [lo, hi] (mm), else 0. */
+int gr_lasers_reach_box(const gr_machine *m, int l, const double lo[2], const double hi[2]);
 /* Add layer l's figures (blocks of one laser in order) to st. */
 void gr_lasers_account(const gr_machine *m, const gr_layer *l, gr_job_stats *st);
 /* Add one layer's figures (gr_lasers_account into a zeroed struct) to st. */

@@ -193,6 +193,7 @@ int gr_job_set_machine(gr_job *j, const gr_machine *m, gr_err *e) {
     for (int k = 0; k < GR_NKINDS; k++)
       if (!(m->speed[l][k] > 0)) return gr_fail(e, GR_EARG, "laser %d speed must be > 0 mm/s", l + 1);
   if (!(m->jump_speed > 0)) return gr_fail(e, GR_EARG, "jump speed must be > 0 mm/s, got %g", m->jump_speed);
+  if (!(m->stitch >= 0 && m->stitch <= 10)) return gr_fail(e, GR_EARG, "stitch must be in [0, 10] mm, got %g", m->stitch);
   j->m = *m;
   j->o.nlasers = m->n;
   return GR_OK;
@@ -210,6 +211,7 @@ gr_machine gr_machine_default(int n) {
     m.hi[l][0] = m.hi[l][1] = INFINITY;
   }
   m.jump_speed = 5000;
+  m.stitch = GR_STITCH_DEFAULT;
   return m;
 }
 
@@ -272,6 +274,7 @@ int gr_job_run(gr_job *j, const gr_job_run_opts *r, gr_err *e) {
   double t0 = gr_now();
   memset(&j->st, 0, sizeof j->st);
   j->st_dropped = 0;
+  j->st_split = 0;
   j->warning[0] = 0;
   int rc = gr_classify_run(j, r->direct, e);
   if (rc) return rc;
@@ -302,6 +305,7 @@ int gr_job_run(gr_job *j, const gr_job_run_opts *r, gr_err *e) {
   pthread_mutex_destroy(&kbmu);
   j->st.layers = (int)done;
   j->st.dropped = j->st_dropped;
+  j->st.split_loops = j->st_split;
   j->st.seconds[2] = gr_now() - t1 - j->st.seconds[1];
   j->st.seconds[3] = gr_now() - t0;
   return rc;

@@ -12,6 +12,9 @@
 #include "paths.h"
 
 #define GR_MAX_LASERS 16
+/* Default overlap of two lasers' scans where they meet, mm: a moderate
+ * overlap (source in doc/formats.md, machine profile). */
+#define GR_STITCH_DEFAULT 0.5
 enum { GR_PATTERN_PARALLEL = 0, GR_PATTERN_ZIGZAG = 1, GR_PATTERN_ISLAND = 2 };
 
 /* The machine: lasers with reachable fields and speeds per vector kind. */
@@ -24,6 +27,7 @@ typedef struct gr_machine {
   double jump_delay;                      /* s per jump */
   double polygon_delay;                   /* s per block */
   double recoat_time;                     /* s per layer */
+  double stitch;                          /* overlap where two lasers meet, mm (stitch.h) */
 } gr_machine;
 gr_machine gr_machine_default(int n);
 
@@ -44,13 +48,16 @@ typedef struct gr_job_stats {
   double jump_length;          /* mm */
   double laser_time[GR_MAX_LASERS];   /* estimated scan time per laser, s */
   double laser_length[GR_MAX_LASERS]; /* scan length per laser, mm */
-  double build_time;           /* sum over layers of the slowest laser, s */
+  double build_time;           /* sum over layers of the slowest laser, plus recoating, s */
+  double jump_time;            /* all lasers' jumps and delays, s (part of their times) */
+  double recoat_time;          /* recoating, s (layers x the machine's recoat time) */
   double balanced_time;        /* the same with perfect balance, s */
   long thin_walls;             /* regions scanned by the thin-wall rule */
   int verified;                /* templates verified in this run (opts.verify) */
   int unqualified;             /* templates failing qualification (built, or stored so) */
   char unqualified_why[256];   /* the last one's reason */
   long dropped;                /* hatch vectors below the minimum length */
+  long split_loops;            /* closed contours no single laser reaches, split with overlap */
   double solid_area;           /* sum over layers of the section area, mm^2 */
   double seconds[4];           /* wall time: classify, templates, layers, total */
 } gr_job_stats;

@@ -1,7 +1,8 @@
 -- gradus.lasers: machine profiles (YAML) and laser assignment rules.
 -- A machine profile (see recipes/machine.yaml and doc/formats.md):
 --   lasers: [{name, field: {lo: [x,y], hi: [x,y]}, contour|hatch|edge: {power, speed}}]
---   jump_speed (mm/s), jump_delay (s per jump), polygon_delay (s per block)
+--   jump_speed (mm/s), jump_delay (s per jump), polygon_delay (s per block),
+--   recoat_time (s per layer), stitch (mm: overlap where two lasers meet)
 local gradus = require "gradus"
 local strict = require "gradus.strict"
 local M = {}
@@ -9,7 +10,7 @@ local M = {}
 -- the keys a machine profile may have, per mapping (anything else is an error)
 local function set(...) local t = {} for _, k in ipairs({ ... }) do t[k] = true end return t end
 local KEYS = {
-  machine = set("name", "plate", "jump_speed", "jump_delay", "polygon_delay", "recoat_time", "lasers"),
+  machine = set("name", "plate", "jump_speed", "jump_delay", "polygon_delay", "recoat_time", "stitch", "lasers"),
   laser = set("name", "field", "contour", "hatch", "edge"),
   box = set("lo", "hi"),
   style = set("power", "speed"),
@@ -45,6 +46,21 @@ local function delay(src, what, v)
   return v
 end
 
+-- The overlap of two lasers' scans where they meet (mm): a closed contour no
+-- single laser reaches, and hatch lines cut at a boundary between lasers,
+-- overlap by this much. Default 0.5 mm (doc/formats.md gives the source).
+M.STITCH_DEFAULT = 0.5
+function M.stitch(src, v)
+  if v == nil then return M.STITCH_DEFAULT end
+  if type(v) ~= "number" or not (v >= 0 and v <= 10) then bad(src, "stitch", "must be in [0, 10] mm, got %s", tostring(v)) end
+  return v
+end
+
+-- Recoating time per layer (s) when the profile gives none: 12 s, the
+-- per-layer recoat of the additive.tools build-time estimator's L-PBF preset
+-- (doc/formats.md); a machine's own value belongs in its profile.
+M.RECOAT_DEFAULT = 12
+
 --- M.normalize(profile, source [, marks]) -> machine with every field
 -- checked and defaults filled. Errors name the source and the field; an
 -- unknown key is an error too, at its line and column when marks (from
@@ -60,7 +76,8 @@ function M.normalize(p, src, marks)
     jump_speed = positive(src, "jump_speed", p.jump_speed or 5000),
     jump_delay = delay(src, "jump_delay", p.jump_delay or 0),
     polygon_delay = delay(src, "polygon_delay", p.polygon_delay or 0),
-    recoat_time = delay(src, "recoat_time", p.recoat_time or 0),
+    recoat_time = delay(src, "recoat_time", p.recoat_time or M.RECOAT_DEFAULT),
+    stitch = M.stitch(src, p.stitch),
     lasers = {},
   }
   for i, l in ipairs(p.lasers) do
@@ -140,6 +157,44 @@ function M.zones(m, xmin, xmax)
     end
     return best
   end
+end
+
+--- M.warnings(machine, stats, part) -> list of messages: each laser with no
+-- work or under 10 % of the scan time, with the reason. part = {origin =
+-- {x, y, z}, cells = {nx, ny, nz}, cell = L (mm), assign = "balance" |
+-- "zones" | function}: the voxel columns the lasers could reach.
+function M.warnings(m, st, part)
+  local out = {}
+  if #m.lasers < 2 then return out end
+  local L, o, c = part.cell, part.origin, part.cells
+  local ncol = c[1] * c[2]
+  for i, las in ipairs(m.lasers) do
+    local share = st.lasers[i] and st.lasers[i].share or 0
+    if share < 0.1 then
+      local reach = 0
+      for jj = 0, c[2] - 1 do
+        for ii = 0, c[1] - 1 do
+          local x0, y0 = o[1] + ii * L, o[2] + jj * L
+          if reaches(las, x0, y0, x0 + L, y0 + L) then reach = reach + 1 end
+        end
+      end
+      local why
+      local f = las.field
+      if reach == 0 then
+        why = ("its field [%g, %g] x [%g, %g] mm does not reach the part [%g, %g] x [%g, %g] mm (reach)"):format(
+          f.lo[1], f.hi[1], f.lo[2], f.hi[2], o[1], o[1] + c[1] * L, o[2], o[2] + c[2] * L)
+      elseif reach < ncol then
+        why = ("its field reaches only %d of the part's %d voxel columns (reach)"):format(reach, ncol)
+      elseif part.assign == "zones" then
+        why = "assign=zones: its zone of the part's x-range holds little of the lattice (zones)"
+      else
+        why = "the voxel rule fixed the lasers of most voxels (rule)"
+      end
+      out[#out + 1] = ("laser %d (%s) %s (%.1f %% of the scan time): %s"):format(i, las.name,
+        share == 0 and "gets no work" or "gets under 10 % of the work", 100 * share, why)
+    end
+  end
+  return out
 end
 
 return M

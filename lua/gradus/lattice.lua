@@ -22,6 +22,8 @@ M.PARAMS = {
   { "surface", "primitive", { choices = SURFACES, help = "TPMS surface of the cells" } },
   { "cell", 2.0, { unit = "mm", min = 0.1, max = 100, help = "cell (voxel) size L" } },
   { "cells", "2,2,1", { n = 3, integer = true, min = 1, max = 100000, help = "cells along x, y, z" } },
+  { "size", "", { n = 3, unit = "mm", min = 0.01, max = 100000, empty = true,
+    help = "part size x, y, z instead of cells: the lattice is cut at the faces (empty: cells)" } },
   { "origin", "0,0,0", { n = 3, unit = "mm", min = -1000, max = 1000, help = "min corner x, y, z of the box of cells" } },
   { "level", 0.0, { min = -20, max = 20, help = "iso-level c of the TPMS (the surface phi = c)" } },
   { "kind", "sheet", { choices = { "sheet", "network" }, help = "sheet (a wall around the surface) or network (one side, grown)" } },
@@ -184,8 +186,9 @@ end
 local function run(p, out)
   strict.action()
   p = checked(p)
-  local cells, origin = p.cells, p.origin
-  local domain = domain_of(p.domain, origin, cells, p.cell)
+  local box = require("gradus.part").box(p)
+  local cells, origin = box.cells, p.origin
+  local domain = box.domain(domain_of(p.domain, origin, cells, p.cell))
   local machine
   if p.machine ~= "" then
     machine = lasers.load(p.machine)
@@ -245,6 +248,8 @@ local function run(p, out)
             laser = laser,
             seq = r.seq or seqf(i, j, k, nx, ny),
           })
+        else
+          job:voxel(i, j, k, { spec = 0 }) -- empty (voxels start with the first spec)
         end
       end
     end
@@ -256,7 +261,8 @@ local function run(p, out)
       return not r.skip and (r.surface or p.surface) or nil
     end)
   end
-  local first, last = parse_range(p.layers, job:layers())
+  local first, last = parse_range(p.layers, box.layers or job:layers())
+  if box.layers and last > box.layers then last = box.layers end
   local keep = {}
   for item in tostring(p.pictures):gmatch("[^,]+") do keep[#keep + 1] = tonumber(item) end
   local checks = {}
@@ -281,12 +287,18 @@ local function run(p, out)
     output = out, format = format, styles = styles, name = out and out:match("([^/]+)$"),
     jump_delay = machine.jump_delay, polygon_delay = machine.polygon_delay, kb = kb ~= "off" and (kb or true) or false,
     direct = kb == "off", first = first, last = last, keep = keep, split = p.split, kb_store = p.kb_store,
+    extent = box.hi,
     quiet = gradus.quiet(), qualify = type(p.qualify) == "function" and p.qualify or nil,
   }
   if st.templates.unqualified > 0 and not gradus.quiet() then
     io.stderr:write(("gradus: %d template(s) not qualified (%s)\n"):format(st.templates.unqualified,
       st.templates.unqualified_reason or ""))
   end
+  st.warnings = lasers.warnings(machine, st, { origin = origin, cells = cells, cell = p.cell, assign = p.assign })
+  for _, w in ipairs(st.warnings) do
+    if not gradus.quiet() then io.stderr:write("gradus: warning: " .. w .. "\n") end
+  end
+  if #st.warnings == 0 then st.warnings = nil end
   -- manifest: every build style with laser, kind, power, speed
   if out then
     gradus.yaml.save((out:gsub("%.cli$", ""):gsub("%.ovf$", "")) .. ".manifest.yaml", {

@@ -121,6 +121,7 @@ function M.check(name, v, s, default)
     error(("parameter '%s' must be one of %s%s, got '%s'%s"):format(name, table.concat(s.choices, ", "), extra,
       tostring(v), type(v) == "string" and M.suggest(v, s.choices) or ""), 0)
   elseif kind == "vec" then
+    if s.empty and v == "" then return "" end
     local t = v
     if type(v) == "number" then
       t = {}
