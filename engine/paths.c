@@ -312,6 +312,7 @@ int gr_layer_append(gr_layer *dst, const gr_layer *src, double dx, double dy) {
 }
 
 double gr_block_length(const gr_layer *l, const gr_block *b) {
+  if (b->n < 2) return 0; /* no segment (and an empty layer has no points: xy may be NULL) */
   const double *p = l->xy + 2 * b->start;
   double s = 0;
   if (b->shape == GR_SEGMENTS) {
