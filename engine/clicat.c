@@ -3,6 +3,7 @@
 #include "clicat.h"
 #include "cli.h"
 #include <errno.h>
+#include <math.h>
 #include <fcntl.h>
 #include <stdlib.h>
 #include <string.h>
@@ -20,6 +21,8 @@ typedef struct cc_part {
   double *z;       /* layer table: z of every layer, mm */
   size_t nz, cap;
   int first, last; /* layer numbers */
+  double dim[6];   /* $$DIMENSION: x, y, z min, x, y, z max (mm; z: the layers this part holds) */
+  int has_dim;
 } cc_part;
 
 static int cc_add_z(void *ud, const gr_layer *l, gr_err *e) {
@@ -126,7 +129,11 @@ static int cc_header(cc_part *p, gr_err *e) {
     if (!strncmp(c, "$$BINARY", 8)) p->h.binary = 1;
     else if (!strncmp(c, "$$UNITS/", 8)) p->h.units = strtod(c + 8, NULL);
     else if (!strncmp(c, "$$LAYERS/", 9)) p->h.layers = atoi(c + 9);
-    else if (!strncmp(c, "$$DIMENSION/", 12)) sscanf(c + 12, "%*f,%*f,%lf", &p->h.lo[2]);
+    else if (!strncmp(c, "$$DIMENSION/", 12)) {
+      double *d = p->dim;
+      p->has_dim = sscanf(c + 12, "%lf,%lf,%lf,%lf,%lf,%lf", &d[0], &d[1], &d[2], &d[3], &d[4], &d[5]) == 6;
+      p->h.lo[2] = d[2];
+    }
   }
   if (!(p->h.units > 0)) return gr_fail(e, GR_EPARSE, "%s: bad $$UNITS", p->path);
   return GR_OK;
@@ -172,12 +179,15 @@ static int cc_open(cc_part *p, gr_err *e) {
   return GR_OK;
 }
 
-/* The next header line that must agree between parts (all but $$LAYERS and
- * $$DATE), or NULL at the end of the header. */
+/* The next header line that must agree between parts (all but $$LAYERS,
+ * $$DATE and $$DIMENSION, whose z range is that of the part's own layers: its
+ * x and y are compared in cc_same_header), or NULL at the end of the header. */
 static const char *cc_kept_line(const cc_part *p, size_t *pos, size_t *n) {
   while (*pos < p->hdr_end) {
     const char *s = cc_line(p, pos, n);
-    if (!((*n >= 9 && !memcmp(s, "$$LAYERS/", 9)) || (*n >= 7 && !memcmp(s, "$$DATE/", 7)))) return s;
+    if (!((*n >= 9 && !memcmp(s, "$$LAYERS/", 9)) || (*n >= 7 && !memcmp(s, "$$DATE/", 7)) ||
+          (*n >= 12 && !memcmp(s, "$$DIMENSION/", 12))))
+      return s;
   }
   *n = 0;
   return NULL;
@@ -186,6 +196,11 @@ static const char *cc_kept_line(const cc_part *p, size_t *pos, size_t *n) {
 /* Same job: the headers agree but for $$LAYERS and $$DATE. */
 static int cc_same_header(const cc_part *a, const cc_part *b, gr_err *e) {
   size_t pa = 0, pb = 0, na, nb;
+  static const int XY[4] = {0, 1, 3, 4};
+  for (int k = 0; k < 4; k++)
+    if (a->has_dim != b->has_dim || (a->has_dim && fabs(a->dim[XY[k]] - b->dim[XY[k]]) > 1e-6))
+      return gr_fail(e, GR_EARG, "%s and %s are not parts of one job: their $$DIMENSION x, y extents differ", a->path,
+                     b->path);
   for (;;) {
     const char *sa = cc_kept_line(a, &pa, &na), *sb = cc_kept_line(b, &pb, &nb);
     if (!sa && !sb) return GR_OK;
@@ -218,7 +233,10 @@ static double cc_step(const cc_part *p, int n, double floor_z) {
 
 /* Number every part's layers; each part must be a run of consecutive layers. */
 static int cc_number(cc_part *p, int n, double *step_out, gr_err *e) {
-  double lo = p[0].h.lo[2], step = cc_step(p, n, lo);
+  /* the floor: the lowest part's bottom ($$DIMENSION z min = the bottom of its first layer) */
+  double lo = p[0].h.lo[2];
+  for (int i = 1; i < n; i++) lo = fmin(lo, p[i].h.lo[2]);
+  double step = cc_step(p, n, lo);
   if (!isfinite(step) || !(step > 0)) {
     if (n == 1) { p[0].first = p[0].last = 1; *step_out = 0; return GR_OK; }
     return gr_fail(e, GR_EARG, "%s and %s: every part is one layer at the same height", p[0].path, p[1].path);
@@ -291,6 +309,12 @@ static int cc_write(const cc_part *p, int n, int layers, const char *out, gr_err
     const char *s = cc_line(&p[0], &pos, &len);
     if (len >= 9 && !memcmp(s, "$$LAYERS/", 9)) {
       fprintf(a.fp, "$$LAYERS/%d", layers);
+      fwrite(p[0].map + at + len, 1, pos - at - len, a.fp);
+    } else if (len >= 12 && !memcmp(s, "$$DIMENSION/", 12) && p[0].has_dim) {
+      /* the z range of all the parts' layers, as the writer formats it */
+      double zlo = p[0].dim[2], zhi = p[0].dim[5];
+      for (int i = 1; i < n; i++) zlo = fmin(zlo, p[i].dim[2]), zhi = fmax(zhi, p[i].dim[5]);
+      fprintf(a.fp, "$$DIMENSION/%.6f,%.6f,%.6f,%.6f,%.6f,%.6f", p[0].dim[0], p[0].dim[1], zlo, p[0].dim[3], p[0].dim[4], zhi);
       fwrite(p[0].map + at + len, 1, pos - at - len, a.fp);
     } else {
       fwrite(p[0].map + at, 1, pos - at, a.fp);

@@ -49,7 +49,7 @@ job h_ascii 14:27 ascii -D hatch=0.07
 refused "another job's part refused (its stats)" "is 0.025 in one and 0.035 in the other (their stats)" "$d/a_ascii.cli" "$d/h_ascii.cli"
 job w_ascii 14:27 ascii -D cells=2,1,2
 rm -f "$d/w_ascii.yaml"
-refused "another job's part refused (its header)" "are not parts of one job: their headers differ" "$d/a_ascii.cli" "$d/w_ascii.cli"
+refused "another job's part refused (its header)" 'are not parts of one job: their $$DIMENSION x, y extents differ' "$d/a_ascii.cli" "$d/w_ascii.cli"
 head -c 3000 "$d/b_ascii.cli" > "$d/t.cli"
 refused "a truncated part refused by name" "$d/t.cli" "$d/a_ascii.cli" "$d/t.cli"
 cp "$d/a_ascii.cli" "$d/keep.cli"

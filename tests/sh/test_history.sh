@@ -11,7 +11,7 @@ d=$(mktemp -d)
 trap 'rm -rf "$d"' EXIT
 pass() { echo "PASS test_history.sh: $1"; }
 fail() { echo "FAIL test_history.sh: $1: $2"; }
-C="-D layer=0.1 -D hatch=0.1 -D res=20 -D format=binary -D thickness=0.1+0.01*x+0.008*y+0.012*z -q"
+C="-D layer=0.1 -D hatch=0.1 -D res=20 -D format=binary -D kb_store=all -D thickness=0.1+0.01*x+0.008*y+0.012*z -q"
 run() { "$G" run recipes/lattice.lua $C "$@" >"$d/log" 2>&1 || { cat "$d/log"; return 1; }; }
 ok=1
 run -D cells=2,2,1 -D kb="$d/k1" -o "$d/a1.cli" && run -D cells=2,2,2 -D kb="$d/k1" -o "$d/a.cli" || ok=0
