@@ -215,7 +215,11 @@ local function stage_templates(work, recipe, params)
     local p = {}
     for k, v in pairs(params) do p[k] = v end
     p.layers = g .. ":" .. g
-    local ok, err = host.run(recipe, p, { output = probe .. ".cli", stats = probe .. ".yaml", quiet = true })
+    -- every template built here is read by the layer tasks: store them all
+    -- (a recipe without kb_store ignores it: allow_unused, this output is discarded)
+    if p.kb_store == nil then p.kb_store = "all" end
+    local ok, err = host.run(recipe, p, { output = probe .. ".cli", stats = probe .. ".yaml", quiet = true,
+      allow_unused = true })
     if not ok then error(err, 0) end
     return gradus.yaml.load(probe .. ".yaml")
   end
