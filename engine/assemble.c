@@ -206,10 +206,22 @@ static int triple_cmp(const void *a, const void *b) {
   return (x > y) - (x < y);
 }
 
+/* A closed contour shorter than the melt track `track` (mm) is not worth
+ * scanning: returns 1 and counts it in l (short_loops, short_length). */
+static int short_loop(const double *p, size_t n, double track, gr_layer *l) {
+  double len = 0;
+  for (size_t k = 0; k + 1 < n; k++) len += hypot(p[2 * k + 2] - p[2 * k], p[2 * k + 3] - p[2 * k + 1]);
+  if (len >= track) return 0;
+  l->short_loops++;
+  l->short_length += len;
+  return 1;
+}
+
 /* Join open contour pieces whose end meets another's start (within tol, same
  * laser) into chains; closed chains become GR_CLOSED loops. Pieces come from
- * s->cont blocks [b0, b1); output appended to `out`. */
-static int join_contours(gr_asm_scratch *s, size_t b0, size_t b1, double tol, gr_layer *out,
+ * s->cont blocks [b0, b1); output appended to `out`, closed loops shorter
+ * than `track` dropped and counted in `out`. */
+static int join_contours(gr_asm_scratch *s, size_t b0, size_t b1, double tol, double track, gr_layer *out,
                          const int *slot_laser, gr_err *e) {
   gr_layer *c = s->cont;
   size_t n = b1 - b0;
@@ -266,6 +278,8 @@ static int join_contours(gr_asm_scratch *s, size_t b0, size_t b1, double tol, gr
       if (bk->shape != GR_OPEN) {
         if (pass == 0) {
           used[i] = 1;
+          const double *bp = c->xy + 2 * bk->start;
+          if (bk->shape == GR_CLOSED && short_loop(bp, bk->n, track, out)) continue;
           if (gr_layer_add(out, bk->shape, bk->kind, slot_laser[bk->laser], bk->dir, c->xy + 2 * bk->start, bk->n))
             return gr_fail(e, GR_EMEM, "out of memory");
         }
@@ -298,6 +312,7 @@ static int join_contours(gr_asm_scratch *s, size_t b0, size_t b1, double tol, gr
         s->pts[1] = 0.5 * (s->pts[1] + s->pts[2 * (m - 1) + 1]);
         s->pts[2 * (m - 1)] = s->pts[0];
         s->pts[2 * (m - 1) + 1] = s->pts[1];
+        if (short_loop(s->pts, m, track, out)) continue;
         double a = 0;
         for (size_t k = 0; k + 1 < m; k++)
           a += s->pts[2 * k] * s->pts[2 * k + 3] - s->pts[2 * k + 2] * s->pts[2 * k + 1];
@@ -372,6 +387,8 @@ static int emit_islands(const gr_job *j, gr_asm_scratch *s, int nslot, gr_layer 
       if (contours) {
         for (size_t b = s->vcont0[q]; b < s->vcont1[q]; b++) {
           const gr_block *bk = &s->cont->b[b];
+          const double *bp = s->cont->xy + 2 * bk->start;
+          if (bk->shape == GR_CLOSED && short_loop(bp, bk->n, j->o.track, out)) continue;
           if (gr_layer_add(out, bk->shape, bk->kind, s->vlas[q], bk->dir, s->cont->xy + 2 * bk->start, bk->n))
             return gr_fail(e, GR_EMEM, "out of memory");
         }
@@ -436,7 +453,9 @@ static int emit_continuous(gr_job *j, gr_asm_scratch *s, gr_layer *out, gr_err *
   if (rc) { gr_layer_free(hat); return rc; }
   gr_layer *con = gr_layer_new(0);
   if (!con) { gr_layer_free(hat); return gr_fail(e, GR_EMEM, "out of memory"); }
-  rc = join_contours(s, 0, s->cont->nb, j->o.hatch / 4, con, s->vlas, e);
+  rc = join_contours(s, 0, s->cont->nb, j->o.hatch / 4, j->o.track, con, s->vlas, e);
+  out->short_loops += con->short_loops;
+  out->short_length += con->short_length;
   for (int la = 0; la < j->m.n && rc == GR_OK; la++) {
     for (int pass = 0; pass < 2 && rc == GR_OK; pass++) {
       const gr_layer *src = ((pass == 0) == (cf != 0)) ? con : hat;

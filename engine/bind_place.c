@@ -390,6 +390,10 @@ static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) 
   set_num(L, "solid_volume_mm3", st->solid_area * o->layer);
   set_int(L, "dropped_short_vectors", st->dropped);
   lua_newtable(L);
+  set_int(L, "dropped_short", st->short_loops);
+  set_num(L, "dropped_short_length", st->short_length);
+  lua_setfield(L, -2, "contours");
+  lua_newtable(L);
   set_num(L, "classify", st->seconds[0]);
   set_num(L, "templates", st->seconds[1]);
   set_num(L, "layers", st->seconds[2]);
