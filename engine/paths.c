@@ -316,6 +316,7 @@ int gr_layer_append(gr_layer *dst, const gr_layer *src, double dx, double dy) {
 }
 
 double gr_block_length(const gr_layer *l, const gr_block *b) {
+  if (b->n == 0) return 0; /* an empty block (e.g. read from a file) has no points */
   const double *p = l->xy + 2 * b->start;
   double s = 0;
   if (b->shape == GR_SEGMENTS) {
