@@ -199,10 +199,21 @@ static int triple_cmp(const void *a, const void *b) {
   return (x > y) - (x < y);
 }
 
+/* A closed contour shorter than the melt track `track` (mm) is not worth
+ * scanning: returns 1 and counts it in l (short_loops, short_length). */
+static int short_loop(const double *p, size_t n, double track, gr_layer *l) {
+  double len = 0;
+  for (size_t k = 0; k + 1 < n; k++) len += hypot(p[2 * k + 2] - p[2 * k], p[2 * k + 3] - p[2 * k + 1]);
+  if (len >= track) return 0;
+  l->short_loops++;
+  l->short_length += len;
+  return 1;
+}
+
 /* Emit the joined pieces of s->cont blocks [b0, b0 + n) (links in s->link):
  * closed blocks as they are; chains from heads, then cycles, each scanned by
  * one laser or split between lasers (stitch.h). */
-static int emit_chains(gr_asm_scratch *s, size_t b0, size_t n, gr_layer *out, const int *slot_laser,
+static int emit_chains(gr_asm_scratch *s, size_t b0, size_t n, double track, gr_layer *out, const int *slot_laser,
                        const gr_machine *mach, long *split, gr_err *e) {
   gr_layer *c = s->cont;
   long *next = s->link, *prev = s->link + n, *used = s->link + 2 * n;
@@ -217,6 +228,7 @@ static int emit_chains(gr_asm_scratch *s, size_t b0, size_t n, gr_layer *out, co
       if (bk->shape != GR_OPEN) {
         if (pass == 0) {
           used[i] = 1;
+          if (bk->shape == GR_CLOSED && short_loop(c->xy + 2 * bk->start, bk->n, track, out)) continue;
           rc = gr_layer_add(out, bk->shape, bk->kind, slot_laser[bk->laser], bk->dir, c->xy + 2 * bk->start, bk->n);
         }
         continue;
@@ -244,6 +256,7 @@ static int emit_chains(gr_asm_scratch *s, size_t b0, size_t n, gr_layer *out, co
       }
       if (rc) break;
       ps[np] = m - 1;
+      if (closed && bk->dir != GR_DIR_THIN && short_loop(s->pts, m, track, out)) continue;
       gr_stitch_chain ch = {s->pts, m, closed, bk->kind, bk->dir, ps, pl, np};
       rc = gr_stitch_chain_emit(mach, &ch, out, split);
     }
@@ -257,7 +270,7 @@ static int emit_chains(gr_asm_scratch *s, size_t b0, size_t n, gr_layer *out, co
  * into chains; closed chains become GR_CLOSED loops, each on one laser where
  * one reaches it (stitch.h). Pieces come from s->cont blocks [b0, b1);
  * output appended to `out`. */
-static int join_contours(gr_asm_scratch *s, size_t b0, size_t b1, double tol, gr_layer *out,
+static int join_contours(gr_asm_scratch *s, size_t b0, size_t b1, double tol, double track, gr_layer *out,
                          const int *slot_laser, const gr_machine *m, long *split, gr_err *e) {
   gr_layer *c = s->cont;
   size_t n = b1 - b0;
@@ -305,7 +318,7 @@ static int join_contours(gr_asm_scratch *s, size_t b0, size_t b1, double tol, gr
   }
   free(sx);
   free(idx);
-  return emit_chains(s, b0, n, out, slot_laser, m, split, e);
+  return emit_chains(s, b0, n, track, out, slot_laser, m, split, e);
 }
 
 /* The voxels of layer g's row (slots in sequence order): template layers
@@ -368,6 +381,8 @@ static int emit_islands(const gr_job *j, gr_asm_scratch *s, int nslot, gr_layer 
       if (contours) {
         for (size_t b = s->vcont0[q]; b < s->vcont1[q]; b++) {
           const gr_block *bk = &s->cont->b[b];
+          const double *bp = s->cont->xy + 2 * bk->start;
+          if (bk->shape == GR_CLOSED && short_loop(bp, bk->n, j->o.track, out)) continue;
           if (gr_layer_add(out, bk->shape, bk->kind, s->vlas[q], bk->dir, s->cont->xy + 2 * bk->start, bk->n))
             return gr_fail(e, GR_EMEM, "out of memory");
         }
@@ -434,7 +449,9 @@ static int emit_continuous(gr_job *j, gr_asm_scratch *s, gr_layer *out, gr_err *
   gr_layer *con = gr_layer_new(0);
   if (!con) { gr_layer_free(hat); return gr_fail(e, GR_EMEM, "out of memory"); }
   long split = 0;
-  rc = join_contours(s, 0, s->cont->nb, j->o.hatch / 4, con, s->vlas, &j->m, &split, e);
+  rc = join_contours(s, 0, s->cont->nb, j->o.hatch / 4, j->o.track, con, s->vlas, &j->m, &split, e);
+  out->short_loops += con->short_loops;
+  out->short_length += con->short_length;
   if (split) __atomic_fetch_add(&j->st_split, split, __ATOMIC_RELAXED);
   for (int la = 0; la < j->m.n && rc == GR_OK; la++) {
     for (int pass = 0; pass < 2 && rc == GR_OK; pass++) {

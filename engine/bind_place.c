@@ -401,6 +401,10 @@ static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) 
   set_num(L, "scan_time_s", lt - st->jump_time);
   set_num(L, "jump_time_s", st->jump_time);
   lua_newtable(L);
+  set_int(L, "dropped_short", st->short_loops);
+  set_num(L, "dropped_short_length", st->short_length);
+  lua_setfield(L, -2, "contours");
+  lua_newtable(L);
   set_num(L, "classify", st->seconds[0]);
   set_num(L, "templates", st->seconds[1]);
   set_num(L, "layers", st->seconds[2]);

@@ -130,6 +130,8 @@ void gr_lasers_account(const gr_machine *m, const gr_layer *l, gr_job_stats *st)
   st->recoat_time += m->recoat_time;
   st->balanced_time += total / m->n + m->recoat_time;
   st->thin_walls += l->thin_walls;
+  st->short_loops += l->short_loops;
+  st->short_length += l->short_length;
   st->solid_area += l->area;
 }
 
@@ -149,6 +151,8 @@ void gr_lasers_add(gr_job_stats *st, const gr_job_stats *l) {
   st->recoat_time += l->recoat_time;
   st->balanced_time += l->balanced_time;
   st->thin_walls += l->thin_walls;
+  st->short_loops += l->short_loops;
+  st->short_length += l->short_length;
   st->solid_area += l->solid_area;
 }
 

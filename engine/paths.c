@@ -264,6 +264,8 @@ void gr_layer_clear(gr_layer *l, double z) {
   l->npts = 0;
   l->nb = 0;
   l->thin_walls = 0;
+  l->short_loops = 0;
+  l->short_length = 0;
   l->area = 0;
 }
 
@@ -307,6 +309,8 @@ int gr_layer_append(gr_layer *dst, const gr_layer *src, double dx, double dy) {
     dst->b[dst->nb++] = b;
   }
   dst->thin_walls += src->thin_walls;
+  dst->short_loops += src->short_loops;
+  dst->short_length += src->short_length;
   dst->area += src->area;
   return GR_OK;
 }

@@ -68,6 +68,8 @@ typedef struct gr_layer {
   gr_block *b;
   size_t nb, capb;
   int thin_walls;  /* regions scanned by the thin-wall rule */
+  int short_loops; /* closed contours dropped as shorter than the melt track */
+  double short_length; /* their total length, mm */
   double area;     /* solid section area of the layer, mm^2 (0 if unknown) */
 } gr_layer;
 

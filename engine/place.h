@@ -58,6 +58,8 @@ typedef struct gr_job_stats {
   char unqualified_why[256];   /* the last one's reason */
   long dropped;                /* hatch vectors below the minimum length */
   long split_loops;            /* closed contours no single laser reaches, split with overlap */
+  long short_loops;            /* closed contours shorter than the melt track, dropped */
+  double short_length;         /* their total length, mm */
   double solid_area;           /* sum over layers of the section area, mm^2 */
   double seconds[4];           /* wall time: classify, templates, layers, total */
 } gr_job_stats;

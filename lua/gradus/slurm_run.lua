@@ -26,7 +26,8 @@ local function part_base(work, i) return ("%s/part%02d"):format(work, i) end
 
 -- statistics that add up over layer ranges (paths in the stats table)
 local SUM = { "layers", "build_time_s", "balanced_time_s", "thin_walls", "solid_volume_mm3",
-  "dropped_short_vectors", "jumps.count", "jumps.length", "templates.built", "templates.reused",
+  "dropped_short_vectors", "contours.dropped_short", "contours.dropped_short_length", "jumps.count",
+  "jumps.length", "templates.built", "templates.reused",
   "templates.verified", "templates.corrupt_rebuilt", "seconds.classify", "seconds.templates",
   "seconds.layers", "seconds.write", "seconds.total" }
 for _, k in ipairs({ "contour", "hatch", "edge" }) do

@@ -51,6 +51,81 @@ function M.test(name, fn)
   io.stdout:flush()
 end
 
+--- t.contour_check(layer, {field=, z=, box={x0, y0, x1, y1}, offset=, max_wrong=0.5}) -> report
+-- Orientation of every closed contour of `layer` (gradus.layer or a CLI layer):
+-- the signed area must agree with the declared direction (dir 1 counter-clockwise
+-- outer, dir 0 clockwise hole), and the solid must lie on the left of every
+-- contour. The solid is {field < 0 at height z} inside the part's box `box`.
+-- Along each contour, every ~offset/2 mm, rays go left and right along the
+-- normal, stepping offset/5 up to 3 offset (the beam offset, mm): the first
+-- point out of the solid on each side is where the boundary is. A contour with
+-- the solid on its left meets the boundary first on its right; a sample whose
+-- exit on the left is nearer by two steps or more is wrong, one whose exits are
+-- within a step (a wall about 2 offsets wide) or out of reach is not decided. (A field's value or gradient at one point is no
+-- test: on a ridge of the field, across a cusp of the section, it points
+-- along the contour.) report = {loops=, samples=, bad={{block=, why=, length=,
+-- wrong=}}}: a loop is bad when its direction disagrees with its area, or when
+-- more than max_wrong of its decided length is wrong.
+function M.contour_check(layer, o)
+  local box, b, maxw = o.box, o.offset, o.max_wrong or 0.5
+  local ds, reach, nstep = b / 2, 3 * b, 15
+  local rep = { loops = 0, samples = 0, bad = {} }
+  local function outside(x, y, g)
+    return g >= 0 or (box and (x < box[1] or x > box[3] or y < box[2] or y > box[4]))
+  end
+  for bi, bk in ipairs(layer:blocks()) do
+    if bk.kind == "contour" and bk.shape == "closed" then
+      rep.loops = rep.loops + 1
+      local P, n = bk.points, #bk.points // 2
+      local area, len = 0, 0
+      local xs, ys, zs, w = {}, {}, {}, {}
+      for k = 1, n - 1 do
+        local x0, y0, x1, y1 = P[2 * k - 1], P[2 * k], P[2 * k + 1], P[2 * k + 2]
+        area = area + x0 * y1 - x1 * y0
+        local dx, dy = x1 - x0, y1 - y0
+        local l = math.sqrt(dx * dx + dy * dy)
+        len = len + l
+        local m = math.ceil(l / ds)
+        for q = 1, l > 0 and m or 0 do
+          local s = (q - 0.5) / m
+          local px, py, nx, ny = x0 + s * dx, y0 + s * dy, -dy / l, dx / l
+          w[#w + 1] = l / m
+          for side = 1, -1, -2 do
+            for st = 1, nstep do
+              local t = side * st * reach / nstep
+              xs[#xs + 1], ys[#ys + 1], zs[#zs + 1] = px + t * nx, py + t * ny, o.z
+            end
+          end
+        end
+      end
+      local g = #xs > 0 and o.field:eval_many(xs, ys, zs) or {}
+      local wrong, decided, i = 0, 0, 0
+      for q = 1, #w do
+        local exit = {}
+        for side = 1, 2 do
+          for st = 1, nstep do
+            i = i + 1
+            if not exit[side] and outside(xs[i], ys[i], g[i]) then exit[side] = st end
+          end
+        end
+        local l, r = exit[1] or math.huge, exit[2] or math.huge
+        if math.abs(l - r) >= 2 then -- nearer by at least two steps: a wall about as wide as 2 offsets is no answer
+          decided = decided + w[q]
+          if l < r then wrong = wrong + w[q] end
+        end
+      end
+      rep.samples = rep.samples + #w
+      local why
+      if (area > 0) ~= (bk.dir == 1) then why = ("dir %d but signed area %.3g mm^2"):format(bk.dir, area / 2)
+      elseif decided > 0 and wrong > maxw * decided then
+        why = ("solid on the right along %.0f %% of its decided length"):format(100 * wrong / decided)
+      end
+      if why then rep.bad[#rep.bad + 1] = { block = bi, why = why, length = len, wrong = wrong } end
+    end
+  end
+  return rep
+end
+
 function M.done()
   if M.failed > 0 then error(M.failed .. " test(s) failed", 0) end
 end
