@@ -7,8 +7,6 @@ local M = {}
 
 local function eprint(...) io.stderr:write(table.concat({ ... }, " "), "\n") end
 
-local function fmt_len(mm) return string.format("%.3f m", mm / 1000) end
-
 --- gradus info FILE: what a CLI or OVF file holds (gradus.info, printed as YAML).
 function M.info(args)
   local path = args[2]
