@@ -15,7 +15,7 @@ trap 'rm -rf "$tmp" "$GRADUS_CACHE_DIR"' EXIT
 pass=0; fail=0
 run() { # label, command...
   local label=$1; shift
-  local log="$tmp/log"
+  local log="$tmp/log" t0=$(date +%s%N)
   "$@" >"$log" 2>&1
   local rc=$?
   local p f
@@ -24,7 +24,8 @@ run() { # label, command...
   if [ "$rc" != 0 ] && [ "$f" = 0 ]; then
     echo "FAIL $label: exit status $rc"; tail -n 20 "$log" | sed 's/^/    /'; f=1
   fi
-  echo "$label: $p passed, $f failed"
+  local ms=$((($(date +%s%N) - t0) / 1000000))
+  echo "$label: $p passed, $f failed ($((ms / 1000)).$(printf %03d $((ms % 1000))) s)"
   pass=$((pass + p)); fail=$((fail + f))
 }
 for t in build/tests/test_*; do [ -x "$t" ] && run "$t" "$t"; done
