@@ -25,8 +25,31 @@ static int laser_reaches(const gr_machine *m, int l, const double o[3], double c
 /* Assign lasers to the voxel slots of a layer: fixed ones as given; the
  * others by longest-processing-time-first onto the laser that would finish
  * first among those that reach the voxel. */
+int gr_lasers_check(const gr_machine *m, const gr_grid *grid, const int *vlaser, const int *vox, int nslot,
+                    gr_err *e) {
+  for (int q = 0; q < nslot; q++) {
+    int v = vox[q], any = 0;
+    double o[3];
+    gr_grid_origin(grid, v, o);
+    if (vlaser[v] >= 0 || m->n == 1) {
+      int l = vlaser[v] >= 0 ? vlaser[v] : 0;
+      if (!laser_reaches(m, l, o, grid->cell))
+        return gr_fail(e, GR_EARG, "laser %d does not reach voxel [%g, %g] x [%g, %g] mm: the machine's laser fields do not cover the part",
+                       l + 1, o[0], o[0] + grid->cell, o[1], o[1] + grid->cell);
+      continue;
+    }
+    for (int l = 0; l < m->n && !any; l++) any = laser_reaches(m, l, o, grid->cell);
+    if (!any)
+      return gr_fail(e, GR_EARG, "no laser reaches voxel [%g, %g] x [%g, %g] mm: the machine's laser fields do not cover the part",
+                     o[0], o[0] + grid->cell, o[1], o[1] + grid->cell);
+  }
+  return GR_OK;
+}
+
 int gr_lasers_assign(const gr_machine *m, const gr_grid *grid, const int *vlaser, const int *vox, int nslot,
                      const double *lc, const double *lh, int *las, gr_err *e) {
+  int rc = gr_lasers_check(m, grid, vlaser, vox, nslot, e);
+  if (rc) return rc;
   double load[GR_MAX_LASERS] = {0};
   int *ord = malloc((size_t)(nslot > 0 ? nslot : 1) * sizeof *ord);
   if (!ord) return gr_fail(e, GR_EMEM, "out of memory");
@@ -35,13 +58,6 @@ int gr_lasers_assign(const gr_machine *m, const gr_grid *grid, const int *vlaser
     int v = vox[q];
     if (vlaser[v] >= 0 || m->n == 1) {
       las[q] = vlaser[v] >= 0 ? vlaser[v] : 0;
-      double o[3];
-      gr_grid_origin(grid, v, o);
-      if (!laser_reaches(m, las[q], o, grid->cell)) {
-        free(ord);
-        return gr_fail(e, GR_EARG, "laser %d does not reach voxel [%g, %g] x [%g, %g] mm: the machine's laser fields do not cover the part",
-                       las[q] + 1, o[0], o[0] + grid->cell, o[1], o[1] + grid->cell);
-      }
       load[las[q]] += est_time(m, las[q], lc[q], lh[q]);
     } else {
       ord[nfree++] = q;
@@ -65,12 +81,7 @@ int gr_lasers_assign(const gr_machine *m, const gr_grid *grid, const int *vlaser
       double t = load[l] + est_time(m, l, lc[q], lh[q]);
       if (t < bt) { bt = t; best = l; }
     }
-    if (best < 0) {
-      free(ord);
-      return gr_fail(e, GR_EARG, "no laser reaches voxel [%g, %g] x [%g, %g] mm: the machine's laser fields do not cover the part",
-                     o[0], o[0] + grid->cell, o[1], o[1] + grid->cell);
-    }
-    las[q] = best;
+    las[q] = best; /* >= 0: gr_lasers_check passed */
     load[best] = bt;
   }
   free(ord);

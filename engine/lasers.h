@@ -18,6 +18,11 @@
  * lengths, mm. Fails (GR_EARG) when no laser reaches a voxel. */
 int gr_lasers_assign(const gr_machine *m, const gr_grid *grid, const int *vlaser, const int *vox, int nslot,
                      const double *lc, const double *lh, int *las, gr_err *e);
+/* Fails (GR_EARG, naming the voxel) when a voxel slot's fixed laser, the only
+ * laser, or every laser misses it: run before any work (gr_job_run) and again
+ * by gr_lasers_assign. */
+int gr_lasers_check(const gr_machine *m, const gr_grid *grid, const int *vlaser, const int *vox, int nslot,
+                    gr_err *e);
 /* 1 if laser l's field holds the box [lo, hi] (mm), else 0. */
 int gr_lasers_reach_box(const gr_machine *m, int l, const double lo[2], const double hi[2]);
 /* Add layer l's figures (blocks of one laser in order) to st. */

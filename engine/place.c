@@ -17,6 +17,7 @@
 #include "build.h"
 #include "classify.h"
 #include "job.h"
+#include "lasers.h"
 #include "stream.h"
 
 gr_job_opts gr_job_defaults(void) {
@@ -282,6 +283,13 @@ int gr_job_run(gr_job *j, const gr_job_run_opts *r, gr_err *e) {
   int ga = r->first > 0 ? r->first : 1, gb = r->last > 0 ? r->last : j->nlayers;
   if (gb > j->nlayers) gb = j->nlayers;
   if (ga > gb && j->nlayers > 0) return gr_fail(e, GR_EARG, "layer range %d:%d is empty (the job has %d layers)", ga, gb, j->nlayers);
+  /* every voxel of the rows to build within a laser's reach, before any work */
+  for (int k = 0; k < j->grid.n[2]; k++) {
+    int g0 = gr_grid_row_first(&j->grid, k), g1 = g0 + gr_grid_row_layers(&j->grid, k) - 1;
+    if (g1 < ga || g0 > gb) continue;
+    if ((rc = gr_lasers_check(&j->m, &j->grid, j->vlaser, j->roworder + (size_t)k * j->rowlen, j->rowcount[k], e)))
+      return rc;
+  }
   double t1 = gr_now();
   j->st.seconds[0] = t1 - t0;
   pthread_mutex_t kbmu;

@@ -34,6 +34,8 @@ function M.raises(fn, pattern, msg)
 end
 
 function M.test(name, fn)
+  local clock = package.loaded.gradus and package.loaded.gradus.clock
+  local t0 = clock and clock()
   local ok, err = xpcall(fn, function(e)
     if type(e) == "table" and e.gradus_test_failure then
       local info = debug.getinfo(3, "Sl")
@@ -43,7 +45,7 @@ function M.test(name, fn)
   end)
   if ok then
     M.passed = M.passed + 1
-    print("PASS " .. src .. ": " .. name)
+    print("PASS " .. src .. ": " .. name .. (t0 and string.format(" (%.1f s)", clock() - t0) or ""))
   else
     M.failed = M.failed + 1
     print("FAIL " .. src .. ": " .. name .. ": " .. tostring(err):gsub("\n", "\n    "))
