@@ -37,7 +37,7 @@ for name in "$@"; do
       "build/fuzz/corpus/$name" "tests/fuzz/$name" >"$log" 2>&1
     rc=$?
     grep -E '^stat::number_of_executed_units|^stat::peak_rss_mb' "$log" | sed "s/^/  $name /"
-    grep -E '#[0-9]+ *(DONE|pulse|NEW|REDUCE).*cov:' "$log" | tail -1 | sed "s/^/  $name last: /"
+    grep -E '#[0-9]+[[:space:]]+(DONE|pulse|NEW|REDUCE).*cov:' "$log" | tail -1 | sed "s/^/  $name last: /"
     if [ $rc != 0 ]; then echo "  $name: FOUND a crash (exit $rc), see $log and build/fuzz/crash-$name-*"; fails=$((fails + 1)); fi
   fi
 done
