@@ -134,10 +134,11 @@ int gr_plate_add(gr_plate *p, const char *path, const char *name, double at_x, d
   q->name = pl_strdup(name);
   gr_cli_header h;
   int rc = (q->path && q->name) ? gr_cli_read(path, &h, pl_keep_layer, q, e) : gr_fail(e, GR_EMEM, "out of memory");
-  if (rc && !strstr(e->msg, path)) {
+  if (rc) { /* say which part (the reader's message names the file) */
     char m[sizeof e->msg];
     snprintf(m, sizeof m, "%s", e->msg);
-    gr_fail(e, rc, "part '%s' (%s): %s", name, path, m);
+    if (strstr(m, path)) gr_fail(e, rc, "part '%s': %s", name, m);
+    else gr_fail(e, rc, "part '%s' (%s): %s", name, path, m);
   }
   if (!rc && q->n == 0) rc = gr_fail(e, GR_EARG, "part '%s' (%s): no layers", name, path);
   if (!rc) {
