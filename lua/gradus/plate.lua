@@ -340,6 +340,18 @@ local function totals(d, parts, w)
     st.laser_time_s = st.laser_time_s + p.laser_time_s
   end
   st.relative_density = bulk > 0 and st.solid_volume_mm3 / bulk or nil
+  -- a laser no part uses: say why (its field holds no whole part)
+  local used = {}
+  for _, p in ipairs(parts) do for _, l in ipairs(p.lasers or {}) do used[l] = true end end
+  for li, l in ipairs(d.machine.lasers) do
+    if not used[li] and #d.machine.lasers > 1 then
+      local f = l.field
+      st.warnings = st.warnings or {}
+      st.warnings[#st.warnings + 1] = ("laser %d (%s) gets no work: %s"):format(li, l.name, f and
+        ("no part lies wholly inside its field [%g, %g] x [%g, %g] mm (reach)"):format(f.lo[1], f.hi[1], f.lo[2], f.hi[2])
+        or "the parts' own runs gave it nothing")
+    end
+  end
   st.recoat_time_s = w.layers * d.machine.recoat_time
   st.build_time_s = st.laser_time_s + st.recoat_time_s
   return st
@@ -460,6 +472,9 @@ local function run(o)
         gradus.png.layer(base .. "_layer" .. keep .. ".png", kept, { width = 900, title = title })
         st.pictures[#st.pictures + 1] = base .. "_layer" .. keep .. ".png"
       end
+    end
+    for _, msg in ipairs(st.warnings or {}) do
+      if not gradus.quiet() then io.stderr:write("gradus: warning: " .. msg .. "\n") end
     end
     gradus.write_stats(st)
     return st

@@ -164,6 +164,8 @@ lattice.run(lattice.params { surface = "primitive", cell = 2, size = "2,2,0.4", 
   local info = gradus.cli.info(tmp .. "/rec.cli")
   t.ok(not info.lasers[1] or (info.lasers[1].vectors or 0) == 0, "laser 1 scans nothing")
   t.ok(info.lasers[2] and info.lasers[2].vectors > 0, "laser 2 scans the part")
+  t.ok(st.warnings and st.warnings[1]:find("laser 1 %(left%) gets no work: no part lies wholly inside its field %[0, 40%]"),
+    "a warning says laser 1 is idle and why")
   -- the same recipe part overlapping a lattice part: found after it ran, from its hull
   local bad = write("rec_bad.yaml", HEAD .. "parts:\n" .. one .. "  - name: r\n    at: [51.5, 50]\n    recipe: " .. recipe .. "\n")
   t.raises(function() plate.run { plate = bad, output = tmp .. "/rb.cli" } end, "parts 'cube' .- and 'r' overlap")
