@@ -144,7 +144,20 @@ function M.load(file)
   if d.format ~= "ascii" and d.format ~= "binary" and d.format ~= "binary-long" then
     fail(d, t, "format", "format must be ascii, binary or binary-long, got '%s'", raw(d.format))
   end
-  for _, k in ipairs({ "kb", "threads", "res", "picture_layer" }) do d[k] = t[k] end
+  for _, k in ipairs({ "threads", "res" }) do
+    if t[k] ~= nil then
+      local okk, v = pcall(strict.check, k, t[k], decl[k][3], decl[k][2])
+      if not okk then fail(d, t, k, "%s", tostring(v)) end
+      d[k] = v
+    end
+  end
+  d.kb = t.kb
+  if t.picture_layer ~= nil then
+    if math.type(t.picture_layer) ~= "integer" or t.picture_layer < 1 then
+      fail(d, t, "picture_layer", "picture_layer must be a layer number (1, 2, ...), got %s", raw(t.picture_layer))
+    end
+    d.picture_layer = t.picture_layer
+  end
   if t.machine ~= nil then
     d.machine_file = rel(file, tostring(t.machine))
     d.machine = lasers.load(d.machine_file)
