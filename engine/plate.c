@@ -11,7 +11,7 @@ typedef struct pl_part {
   double zlo, zhi;   /* $$DIMENSION z range */
   double c[2];       /* centre of the own x-y extent */
   double *hull;      /* placed footprint, CCW */
-  size_t nhull;
+  size_t nhull, caphull; /* points; capacity in doubles */
   int lasers;
   double length;
 } pl_part;
@@ -101,7 +101,7 @@ static int pl_place(pl_part *q, double ax, double ay, double deg, gr_err *e) {
       q->length += gr_block_length(l, &l->b[b]);
     }
     size_t m = q->nhull + l->npts;
-    if (gr_grow(&buf, &cap, 2 * m + 2, sizeof *buf) || gr_grow(&q->hull, &(size_t){0}, 2 * m + 2, sizeof *q->hull)) {
+    if (gr_grow(&buf, &cap, 2 * m + 2, sizeof *buf) || gr_grow(&q->hull, &q->caphull, 2 * m + 2, sizeof *q->hull)) {
       free(buf);
       return gr_fail(e, GR_EMEM, "out of memory");
     }
