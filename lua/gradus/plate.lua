@@ -307,8 +307,9 @@ local function run_part(d, part, tmp)
   local ok, err = host.run(recipe, params, { output = cli, stats = stats, quiet = true })
   print = say
   if not ok then
-    error(("%s: part '%s'%s: %s"):format(where(d, part.pos, part.recipe and "params" or "name"), part.name,
-      part.recipe and (" (recipe " .. part.recipe .. ")") or "", tostring(err):gsub("^gradus: ", "")), 0)
+    local msg = tostring(err):gsub("^gradus: ", ""):gsub("\ntraceback:.*$", "")
+    error(("%s: part '%s'%s: %s"):format(where(d, part.pos, part.recipe and "params" or "at"), part.name,
+      part.recipe and (" (recipe " .. part.recipe .. ")") or "", msg), 0)
   end
   if gradus.fs.kind(cli) ~= "file" then
     error(("%s: part '%s': the recipe wrote no CLI to -o (%s)"):format(where(d, part.pos, "recipe"), part.name, cli), 0)
@@ -401,8 +402,9 @@ function M.footprint_svg(path, d)
     local pts = {}
     for _, q in ipairs(part.footprint or {}) do pts[#pts + 1] = X(q[1]) .. "," .. Y(q[2]) end
     out[#out + 1] = ('<polygon points="%s" fill="#ffd8a8" stroke="#d9480f"/>'):format(table.concat(pts, " "))
-    out[#out + 1] = ('<text x="%s" y="%s" font-family="sans-serif" font-size="13" text-anchor="middle">%s</text>')
-      :format(X(part.at[1]), Y(part.at[2]), esc(part.name))
+    local lo = bbox(part.footprint or { part.at })
+    out[#out + 1] = ('<text x="%s" y="%.2f" font-family="sans-serif" font-size="13" text-anchor="middle">%s</text>')
+      :format(X(part.at[1]), tonumber(Y(lo[2])) + 15, esc(part.name)) -- below the footprint
   end
   out[#out + 1] = "</svg>\n"
   gradus.write_file(path, table.concat(out, "\n"))
