@@ -414,6 +414,9 @@ end
 
 local function run(o)
   strict.action()
+  if gradus._ctx.sandbox then -- the parts would run as recipes of their own, outside it
+    error("a build plate cannot run under --sandbox yet: its parts run as jobs of their own, outside the sandbox", 0)
+  end
   local d = type(o.plate) == "table" and o.plate or M.load(o.plate)
   local out = o.output or "out/plate.cli"
   if not out:lower():match("%.cli$") then error(("plate output %s: a .cli file expected"):format(out), 0) end

@@ -55,3 +55,7 @@ rc=$?
 left=$(ls "$d" | grep -E '^o[._]')
 [ $rc -ne 0 ] && echo "$out" | grep -q "over.yaml:15:5: parts 'a' (.*over.yaml:8:5) and 'b' overlap on the plate" && [ -z "$left" ] &&
   pass "overlapping parts refused, nothing written" || fail "overlapping parts refused" "rc $rc: $out; left: $left"
+out=$($G run --sandbox recipes/plate.lua -q -D plate="$d/p.yaml" -o "$d/s.cli" 2>&1)
+rc=$?
+[ $rc -ne 0 ] && echo "$out" | grep -q "cannot run under --sandbox" && [ ! -e "$d/s.cli" ] &&
+  pass "refused under --sandbox (its parts would run outside it)" || fail "refused under --sandbox" "rc $rc: $out"
