@@ -66,7 +66,7 @@ typedef struct gr_plate_opts {
 
 typedef struct gr_plate_info {
   int layers;        /* plate layers written (1 .. the tallest part's top) */
-  double lo[3], hi[3]; /* $$DIMENSION written: box of all placed footprints, floor to top (mm) */
+  double lo[3], hi[3]; /* $$DIMENSION written: x-y box of every placed vector (the hulls), floor to top (mm) */
   long blocks;       /* blocks written */
   double length;     /* scan length written (mm) */
   gr_layer *kept;    /* a copy of layer opts.keep (caller frees), or NULL */
