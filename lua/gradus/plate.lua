@@ -151,7 +151,9 @@ function M.load(file)
       d[k] = v
     end
   end
-  d.kb = t.kb
+  d.kb = t.kb -- YAML reads `kb: off` as false
+  if d.kb == false then d.kb = "off" elseif d.kb == true then d.kb = nil end
+  if d.kb ~= nil and type(d.kb) ~= "string" then fail(d, t, "kb", "kb must be a directory, off, or left out (the default cache)") end
   if t.picture_layer ~= nil then
     if math.type(t.picture_layer) ~= "integer" or t.picture_layer < 1 then
       fail(d, t, "picture_layer", "picture_layer must be a layer number (1, 2, ...), got %s", raw(t.picture_layer))

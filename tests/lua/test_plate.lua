@@ -113,6 +113,13 @@ t.test("two parts of different heights, one turned: layers merged by z, header, 
   t.ok(exists(tmp .. "/two.manifest.yaml") and exists(tmp .. "/two_plate.svg"), "manifest and footprint picture")
 end)
 
+t.test("plate file: kb: off (a YAML boolean) means no knowledge base, not a directory named false", function()
+  local d = plate.load(write("kboff.yaml", "kb: off\nplate: {lo: [0, 0], hi: [10, 10]}\nparts:\n  - {name: a, at: [5, 5]}\n"))
+  t.eq(d.kb, "off", "kb")
+  t.eq(d.layer, 0.04, "the default layer thickness")
+  t.eq(d.parts[1].box[1], 4, "default cells 2 x 2 mm: a 4 mm box")
+end)
+
 -- every bad plate: refused with the message, and nothing written
 local function refused(name, yaml, pattern)
   t.test("refused: " .. name, function()
