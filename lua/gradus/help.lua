@@ -14,6 +14,7 @@ local FILES = {
   ["field.md"] = { "field.", "field" }, ["mesh.md"] = { "mesh.", "mesh" },
   ["hatch.md"] = { "hatch.", "layer" }, ["distance.md"] = { "distance.", "rings" },
   ["place.md"] = { "place.", "job" }, ["host.md"] = { "", nil }, ["density.md"] = { "", nil },
+  ["plate.md"] = { "", "plate" },
 }
 
 local function load_sections()
