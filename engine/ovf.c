@@ -193,7 +193,7 @@ static int encode_layer(gr_ovf_writer *w, const gr_layer *l, const int *keys, gr
   for (size_t b = 0; b < l->nb; b++) {
     const gr_block *bk = &l->b[b];
     w->bpos[b] = here(w);
-    if (put_block(w, l, bk, keys ? keys[b] : bk->laser * 3 + bk->kind + 1, &a, e)) return e->code;
+    if (put_block(w, l, bk, keys ? keys[b] : gr_style_id(bk), &a, e)) return e->code;
   }
   for (int k = 0; k < 2; k++) {
     w->lo[k] = fmin(w->lo[k], a.lo[k]);
