@@ -188,6 +188,29 @@ t.test("thin-wall centre lines get the thin style", function()
   t.eq(bad, 0, "a block has the thin style (id 97) exactly when it is a thin-wall line")
 end)
 
+t.test("OVF: down-skin and up-skin blocks carry lpbf_metadata.skin_type DOWN_SKIN / UP_SKIN", function()
+  -- the paper's graded sheet (hatched walls) on the top layers of one cell, as CLI and OVF
+  local q = { domain = "", skin = 0, size = "", cells = "1,1,1", layers = "44:50", layer = 0.04, hatch = 0.05,
+    kb_store = "all", thickness = lattice.EQ8 }
+  lattice.run(params(q), tmp .. "/o.cli")
+  lattice.run(params(q), tmp .. "/o.ovf")
+  local n, back = {}, {} -- blocks per region: the CLI, and the OVF read back
+  for _, l in ipairs(gradus.cli.read(tmp .. "/o.cli").layers) do
+    for _, b in ipairs(l:blocks()) do n[b.region] = (n[b.region] or 0) + 1 end
+  end
+  for _, l in ipairs(gradus.cli.read(tmp .. "/o.ovf").layers) do
+    for _, b in ipairs(l:blocks()) do back[b.region] = (back[b.region] or 0) + 1 end
+  end
+  local bytes = io.open(tmp .. "/o.ovf", "rb"):read("a")
+  -- a hatch block's lpbf_metadata (101, length 2): skin_type (2) = 1 or 2, part_area VOLUME (0) omitted
+  local function count(pat) local k = 0 for _ in bytes:gmatch(pat) do k = k + 1 end return k end
+  t.ok((n.downskin or 0) > 0 and (n.upskin or 0) > 0, "the lattice has down-skin and up-skin blocks")
+  t.eq(count("\xaa\x06\x02\x10\x01"), n.downskin, "one DOWN_SKIN mark per down-skin block")
+  t.eq(count("\xaa\x06\x02\x10\x02"), n.upskin, "one UP_SKIN mark per up-skin block")
+  t.eq(back.downskin, n.downskin, "the OVF reader maps DOWN_SKIN back to the down-skin region")
+  t.eq(back.upskin, n.upskin, "and UP_SKIN to up-skin")
+end)
+
 local function profile(text)
   local path = tmp .. "/bad.yaml"
   local f = io.open(path, "w")
