@@ -7,6 +7,7 @@
 #include "clip.h"
 #include "hatch.h"
 #include "lasers.h"
+#include "regions.h"
 
 typedef gr_asm_seg seg; /* stitch.h */
 
@@ -189,6 +190,7 @@ static int hatch_voxel(gr_job *j, gr_asm_scratch *s, const gr_tlayer *tl, const 
       sg->line = lround((-ax * sa + ay * ca) / j->o.hatch);
       sg->laser = 0;
       sg->voxel = slot;
+      sg->region = GR_CORE;
     }
   }
   return GR_OK;
@@ -363,6 +365,7 @@ static int gather_voxels(gr_job *j, int g, gr_asm_scratch *s, gr_layer *out, gr_
     double av = a;
     if (j->o.pattern == GR_PATTERN_ISLAND && ((i + jj) & 1)) av = fmod(a + 90, 360);
     rc = hatch_voxel(j, s, tl, o, av, q, mask, e);
+    if (rc == GR_OK) rc = gr_regions_split(j, g, v, &s->segs, &s->nseg, &s->capseg, s->vseg0[q], e);
     s->vcont1[q] = s->cont->nb;
     s->vseg1[q] = s->nseg;
     for (size_t r = s->vseg0[q]; r < s->nseg; r++) lh[q] += s->segs[r].s1 - s->segs[r].s0;
@@ -393,7 +396,7 @@ static int emit_islands(const gr_job *j, gr_asm_scratch *s, int nslot, gr_layer 
           const seg *sg = &s->segs[r];
           if (sg->line != lastline) { flip = !flip; lastline = sg->line; }
           int rev = j->o.alternate && flip;
-          if (gr_layer_add_segment(out, GR_HATCH, s->vlas[q], rev ? sg->x1 : sg->x0, rev ? sg->y1 : sg->y0,
+          if (gr_layer_add_segment_r(out, GR_HATCH, sg->region, s->vlas[q], rev ? sg->x1 : sg->x0, rev ? sg->y1 : sg->y0,
                                    rev ? sg->x0 : sg->x1, rev ? sg->y0 : sg->y1))
             return gr_fail(e, GR_EMEM, "out of memory");
         }
@@ -411,7 +414,7 @@ static int join_hatches(gr_job *j, gr_asm_scratch *s, gr_layer *hat, gr_err *e) 
   double tol = 1e-7;
   for (size_t r = 0; r < s->nseg; r++) {
     if (w > 0 && s->segs[w - 1].laser == s->segs[r].laser && s->segs[w - 1].line == s->segs[r].line &&
-        s->segs[r].s0 <= s->segs[w - 1].s1 + tol) {
+        s->segs[w - 1].region == s->segs[r].region && s->segs[r].s0 <= s->segs[w - 1].s1 + tol) {
       if (s->segs[r].s1 > s->segs[w - 1].s1) {
         s->segs[w - 1].s1 = s->segs[r].s1;
         s->segs[w - 1].x1 = s->segs[r].x1;
@@ -431,7 +434,7 @@ static int join_hatches(gr_job *j, gr_asm_scratch *s, gr_layer *hat, gr_err *e) 
     if (sg->laser != lastlaser) { flip = 0; lastline = LONG_MIN; lastlaser = sg->laser; }
     if (sg->line != lastline) { flip = !flip; lastline = sg->line; }
     int rev = j->o.alternate && !flip;
-    if (gr_layer_add_segment(hat, GR_HATCH, sg->laser, rev ? sg->x1 : sg->x0, rev ? sg->y1 : sg->y0,
+    if (gr_layer_add_segment_r(hat, GR_HATCH, sg->region, sg->laser, rev ? sg->x1 : sg->x0, rev ? sg->y1 : sg->y0,
                              rev ? sg->x0 : sg->x1, rev ? sg->y0 : sg->y1))
       return gr_fail(e, GR_EMEM, "out of memory");
   }
@@ -463,6 +466,7 @@ static int emit_continuous(gr_job *j, gr_asm_scratch *s, gr_layer *out, gr_err *
           rc = gr_fail(e, GR_EMEM, "out of memory");
           break;
         }
+        out->b[out->nb - 1].region = bk->region;
       }
     }
   }
@@ -477,7 +481,8 @@ int gr_asm_layer(gr_job *j, int g, gr_asm_scratch *s, gr_layer *out, gr_err *e) 
   if (rc) return rc;
   out->thin_walls = s->cont->thin_walls;
   for (size_t r = 0; r < s->nseg; r++) s->segs[r].laser = s->vlas[s->segs[r].voxel];
-  if (j->o.pattern == GR_PATTERN_ISLAND)
-    return emit_islands(j, s, j->rowcount[gr_grid_layer_row(&j->grid, g)], out, e);
-  return emit_continuous(j, s, out, e);
+  rc = j->o.pattern == GR_PATTERN_ISLAND ? emit_islands(j, s, j->rowcount[gr_grid_layer_row(&j->grid, g)], out, e)
+                                         : emit_continuous(j, s, out, e);
+  if (rc == GR_OK) gr_regions_tag_thin(j, out);
+  return rc;
 }

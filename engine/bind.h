@@ -84,5 +84,11 @@ int gr_open_place(lua_State *L);    /* gradus.place.*, gradus.kb.* */
 int gr_open_view(lua_State *L);     /* gradus.view.* (bind_view.c) */
 int gr_open_density(lua_State *L);  /* gradus.density.*, gradus.field.file */
 struct gr_dtable *gr_test_dtable(lua_State *L, int idx); /* a density table or NULL */
+/* bind_regions.c: job:regions{...}, and the stats' `regions` table (set into
+ * the table on top of the stack; nothing without regions). */
+int gr_l_job_regions(lua_State *L);
+struct gr_job;
+struct gr_job_stats;
+void gr_regions_push_stats(lua_State *L, const struct gr_job *j, const struct gr_job_stats *st);
 
 #endif

@@ -227,7 +227,8 @@ static int l_stats(lua_State *L) {
 }
 
 /* l:blocks() -> array of {kind=, shape=, dir=, laser= (1-based), thin= (thin-wall
- * centre line), points={x1, y1, ...}} */
+ * centre line), region= (core, skin, thin, downskin, upskin: regions.h), id=
+ * (the CLI build-style id), points={x1, y1, ...}} */
 static int l_blocks(lua_State *L) {
   gr_layer *l = gr_check_layer(L, 1);
   lua_createtable(L, (int)l->nb, 0);
@@ -241,6 +242,8 @@ static int l_blocks(lua_State *L) {
     lua_pushinteger(L, b->dir); lua_setfield(L, -2, "dir");
     lua_pushboolean(L, b->dir == GR_DIR_THIN); lua_setfield(L, -2, "thin");
     lua_pushinteger(L, b->laser + 1); lua_setfield(L, -2, "laser");
+    lua_pushstring(L, gr_region_name(b->region)); lua_setfield(L, -2, "region");
+    lua_pushinteger(L, gr_style_id(b)); lua_setfield(L, -2, "id");
     lua_createtable(L, (int)(2 * b->n), 0);
     for (size_t k = 0; k < 2 * b->n; k++) {
       lua_pushnumber(L, l->xy[2 * b->start + k]);

@@ -16,6 +16,7 @@
 #include "bind_ovf.h"
 #include "kb.h"
 #include "place.h"
+#include "regions.h"
 
 #define JOB_MT "gradus.job"
 
@@ -273,6 +274,7 @@ static int sink(void *ud, int g, const gr_layer *l, gr_err *e) {
         if (l->b[b].laser == la &&
             gr_layer_add(s->tmp, l->b[b].shape, l->b[b].kind, la, l->b[b].dir, l->xy + 2 * l->b[b].start, l->b[b].n))
           return gr_fail(e, GR_EMEM, "out of memory");
+        else if (l->b[b].laser == la) s->tmp->b[s->tmp->nb - 1].region = l->b[b].region;
       rc = gr_cli_write_layer(s->w[la + 1], s->tmp, e);
     }
   }
@@ -390,6 +392,7 @@ static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) 
   double busy = st->build_time - st->recoat_time;
   set_num(L, "balance_efficiency", busy > 0 ? (st->balanced_time - st->recoat_time) / busy : 1);
   set_int(L, "thin_walls", st->thin_walls);
+  gr_regions_push_stats(L, j, st);
   if (st->layers > 0)
     set_num(L, "relative_density", st->solid_area / (st->layers * o->n[0] * (double)o->n[1] * o->cell * o->cell));
   set_num(L, "solid_volume_mm3", st->solid_area * o->layer);
@@ -522,6 +525,7 @@ static int l_run(lua_State *L) {
   gr_cli_header h = gr_cli_header_defaults();
   h.binary = binary;
   h.nlasers = o->nlasers;
+  h.regions = gr_regions_mask(j);
   int ga = r.first > 0 ? r.first : 1, gb = r.last > 0 && r.last < gr_job_layers(j) ? r.last : gr_job_layers(j);
   h.layers = gb - ga + 1;
   s.g0 = ga;
@@ -634,7 +638,7 @@ static int l_kb_default_dir(lua_State *L) {
 
 static const luaL_Reg job_methods[] = {
     {"spec", l_spec},     {"voxel", l_voxel}, {"domain", l_domain}, {"machine", l_machine},
-    {"layers", l_layers}, {"run", l_run},     {NULL, NULL}};
+    {"layers", l_layers}, {"run", l_run},     {"regions", gr_l_job_regions}, {NULL, NULL}};
 
 static void push_entry(lua_State *L, const char *key, const char *sig, size_t bytes, int qualified,
                        const double *quality, long long created) {

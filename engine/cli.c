@@ -59,6 +59,10 @@ gr_cli_writer *gr_cli_open(const char *path, const gr_cli_header *h, gr_err *e) 
   int rc = putf(w, e, "$$HEADERSTART\n%s\n$$UNITS/%.9g\n$$VERSION/200\n", h->binary ? "$$BINARY" : "$$ASCII", h->units);
   for (int l = 0; l < (h->nlasers > 0 ? h->nlasers : 1) && !rc; l++)
     for (int k = 0; k < GR_NKINDS && !rc; k++) rc = putf(w, e, "$$LABEL/%d,laser%d-%s\n", l * 3 + k + 1, l + 1, KIND[k]);
+  for (int r = 1; r < GR_NREGIONS && !rc; r++) /* regions.h: each region's styles after the core's */
+    for (int l = 0; (h->regions >> r & 1) && l < (h->nlasers > 0 ? h->nlasers : 1) && !rc; l++)
+      for (int k = 0; k < GR_NKINDS && !rc; k++)
+        rc = putf(w, e, "$$LABEL/%d,laser%d-%s-%s\n", r * GR_REGION_IDS + l * 3 + k + 1, l + 1, gr_region_name(r), KIND[k]);
   if (!rc)
     rc = putf(w, e, "$$DATE/%02d%02d%02d\n$$DIMENSION/%.6f,%.6f,%.6f,%.6f,%.6f,%.6f\n$$LAYERS/%d\n$$HEADEREND",
               tm.tm_mday, tm.tm_mon + 1, tm.tm_year % 100, h->lo[0], h->lo[1], h->lo[2], h->hi[0], h->hi[1], h->hi[2],
@@ -149,7 +153,7 @@ static int binary_layer(gr_cli_writer *w, const gr_layer *l, gr_err *e) {
   for (size_t b = 0; b < l->nb; b++) {
     const gr_block *bk = &l->b[b];
     const double *p = l->xy + 2 * bk->start;
-    int id = bk->laser * 3 + bk->kind + 1, done = 0;
+    int id = gr_style_id(bk), done = 0;
     if (w->h.short_form && short_block(w, bk, p, id, &done, e)) return e->code;
     if (done) continue;
     w->longs++;
@@ -191,7 +195,7 @@ int gr_cli_write_layer(gr_cli_writer *w, const gr_layer *l, gr_err *e) {
     for (size_t b = 0; b < l->nb; b++) {
       const gr_block *bk = &l->b[b];
       const double *p = l->xy + 2 * bk->start;
-      int id = bk->laser * 3 + bk->kind + 1;
+      int id = gr_style_id(bk);
       if (bk->shape == GR_SEGMENTS) {
         if (putf(w, e, "$$HATCHES/%d,%zu", id, bk->n / 2)) return e->code;
       } else {

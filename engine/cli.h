@@ -32,6 +32,7 @@ typedef struct gr_cli_header {
   int layers;        /* $$LAYERS */
   double lo[3], hi[3]; /* $$DIMENSION, mm */
   int nlasers;       /* labels written for lasers 1..nlasers */
+  int regions;       /* writer: bit r set = labels of region r (paths.h gr_region) written too */
   int buffered;      /* writer: 1 = through the page cache only (default 0:
                         O_DIRECT where the file system allows it) */
   int short_form;    /* writer, binary: 1 = short commands (128, 129, 131:
@@ -56,7 +57,8 @@ const char *gr_cli_form(const gr_cli_writer *w);
 /* commit != 0: finish and rename into place; 0: remove the temporary. Frees w. */
 int gr_cli_close(gr_cli_writer *w, int commit, gr_err *e);
 
-/* Reader: calls fn for each layer (block laser = (id-1)/3, kind = (id-1)%3).
+/* Reader: calls fn for each layer (block kind = (id-1)%3, laser = (id-1)/3
+ * mod 16, region = (id-1)/48: paths.h gr_style_id).
  * Errors name the file and the line (ASCII) or byte offset (binary). */
 typedef int (*gr_cli_layer_fn)(void *ud, const gr_layer *l, gr_err *e);
 int gr_cli_read(const char *path, gr_cli_header *h, gr_cli_layer_fn fn, void *ud, gr_err *e);

@@ -76,12 +76,13 @@ static int rd_flush(rd *r, gr_err *e) { return r->have ? r->fn(r->ud, r->l, r->s
 /* Append the block of n points r->xy with CLI id and direction. */
 static int rd_block(rd *r, int shape, int id, int dir, size_t n, gr_err *e) {
   if (n == 0) return GR_OK; /* an empty polyline or hatch block holds nothing to scan: skipped */
-  int kind = id >= 1 ? (id - 1) % 3 : GR_EDGE, laser = id >= 1 ? (id - 1) / 3 : 0;
+  int kind = id >= 1 ? (id - 1) % 3 : GR_EDGE, laser = id >= 1 ? (id - 1) / 3 % (GR_REGION_IDS / 3) : 0;
   int st = gr_cli_style_index(r->h, id, r->power, r->speed, r->focus);
   if (st < 0) return gr_fail(e, GR_EPARSE, "%s: more than %d build styles", r->path, GR_CLI_MAXSTYLES);
   if (gr_grow(&r->style, &r->capstyle, r->l->nb + 1, sizeof *r->style) ||
       gr_layer_add(r->l, shape, kind, laser, dir, r->xy, n))
     return gr_fail(e, GR_EMEM, "out of memory");
+  r->l->b[r->l->nb - 1].region = id >= 1 ? (id - 1) / GR_REGION_IDS : 0;
   r->style[r->l->nb - 1] = st;
   return GR_OK;
 }

@@ -48,6 +48,7 @@ struct gr_job {
   int rowlen;         /* nx*ny */
   long st_dropped;
   long st_split;      /* closed contours split between lasers (stitch.h) */
+  struct gr_regions *regions; /* regions with their own build styles (regions.h) or NULL */
 };
 
 #endif

@@ -90,19 +90,33 @@ int gr_lasers_assign(const gr_machine *m, const gr_grid *grid, const int *vlaser
 
 void gr_lasers_account(const gr_machine *m, const gr_layer *l, gr_job_stats *st) {
   double len[GR_MAX_LASERS][GR_NKINDS];
-  double jl[GR_MAX_LASERS];
+  double jl[GR_MAX_LASERS], rt[GR_MAX_LASERS]; /* rt: marking time of region vectors (regions.h) */
   size_t nj[GR_MAX_LASERS], nb[GR_MAX_LASERS];
   double px[GR_MAX_LASERS], py[GR_MAX_LASERS];
   int have[GR_MAX_LASERS];
   memset(len, 0, sizeof len);
   memset(jl, 0, sizeof jl);
+  memset(rt, 0, sizeof rt);
   memset(nj, 0, sizeof nj);
   memset(nb, 0, sizeof nb);
   memset(have, 0, sizeof have);
   for (size_t b = 0; b < l->nb; b++) {
     const gr_block *bk = &l->b[b];
-    int la = bk->laser, k = bk->kind;
+    int la = bk->laser, k = bk->kind, rg = bk->region >= 0 && bk->region < GR_NREGIONS ? bk->region : 0;
     if (la < 0 || la >= m->n || bk->n < 2) continue;
+    double blen = gr_block_length(l, bk);
+    st->region_vectors[rg] += bk->shape == GR_SEGMENTS ? bk->n / 2 : bk->n - 1;
+    st->region_length[rg] += blen;
+    double other = 0, *acc = &len[la][k]; /* a region's own speed: kept apart from the core's sums */
+    if (rg && m->rspeed[rg] > 0) {
+      acc = &other;
+      rt[la] += blen / m->rspeed[rg];
+      st->region_time[rg] += blen / m->rspeed[rg];
+      st->length[k] += blen;
+      st->laser_length[la] += blen;
+    } else {
+      st->region_time[rg] += blen / m->speed[la][k];
+    }
     const double *p = l->xy + 2 * bk->start;
     nb[la]++;
     size_t step = bk->shape == GR_SEGMENTS ? 2 : bk->n;
@@ -115,16 +129,16 @@ void gr_lasers_account(const gr_machine *m, const gr_layer *l, gr_job_stats *st)
       py[la] = p[2 * last + 1];
       if (bk->shape == GR_SEGMENTS) {
         st->vectors[k]++;
-        len[la][k] += gr_len2d(p[2 * q + 2] - p[2 * q], p[2 * q + 3] - p[2 * q + 1]);
+        *acc += gr_len2d(p[2 * q + 2] - p[2 * q], p[2 * q + 3] - p[2 * q + 1]);
       } else {
         st->vectors[k] += bk->n - 1;
-        for (size_t r = 0; r + 1 < bk->n; r++) len[la][k] += gr_len2d(p[2 * r + 2] - p[2 * r], p[2 * r + 3] - p[2 * r + 1]);
+        for (size_t r = 0; r + 1 < bk->n; r++) *acc += gr_len2d(p[2 * r + 2] - p[2 * r], p[2 * r + 3] - p[2 * r + 1]);
       }
     }
   }
   double makespan = 0, total = 0;
   for (int la = 0; la < m->n; la++) {
-    double t = jl[la] / m->jump_speed + nj[la] * m->jump_delay + nb[la] * m->polygon_delay;
+    double t = jl[la] / m->jump_speed + nj[la] * m->jump_delay + nb[la] * m->polygon_delay + rt[la];
     st->jump_time += t;
     for (int k = 0; k < GR_NKINDS; k++) {
       t += len[la][k] / m->speed[la][k];
@@ -154,6 +168,11 @@ void gr_lasers_add(gr_job_stats *st, const gr_job_stats *l) {
   for (int la = 0; la < GR_MAX_LASERS; la++) {
     st->laser_time[la] += l->laser_time[la];
     st->laser_length[la] += l->laser_length[la];
+  }
+  for (int r = 0; r < GR_NREGIONS; r++) {
+    st->region_vectors[r] += l->region_vectors[r];
+    st->region_length[r] += l->region_length[r];
+    st->region_time[r] += l->region_time[r];
   }
   st->jumps += l->jumps;
   st->jump_length += l->jump_length;

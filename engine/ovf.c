@@ -162,6 +162,8 @@ static int put_block(gr_ovf_writer *w, const gr_layer *l, const gr_block *b, int
                  : b->kind == GR_EDGE  ? OPEN_VECTOR_FORMAT__VECTOR_BLOCK__PART_AREA__TRANSITION_CONTOUR
                                        : OPEN_VECTOR_FORMAT__VECTOR_BLOCK__PART_AREA__VOLUME;
   if (b->shape == GR_OPEN && b->dir == GR_DIR_THIN) lp.structure_type = OPEN_VECTOR_FORMAT__VECTOR_BLOCK__STRUCTURE_TYPE__WIRESTRUCTURE;
+  if (b->region == GR_DOWNSKIN) lp.skin_type = OPEN_VECTOR_FORMAT__VECTOR_BLOCK__LPBFMETADATA__SKIN_TYPE__DOWN_SKIN;
+  if (b->region == GR_UPSKIN) lp.skin_type = OPEN_VECTOR_FORMAT__VECTOR_BLOCK__LPBFMETADATA__SKIN_TYPE__UP_SKIN;
   vb.process_meta_data_case = OPEN_VECTOR_FORMAT__VECTOR_BLOCK__PROCESS_META_DATA_LPBF_METADATA;
   vb.lpbf_metadata = &lp;
   return append(w, &vb.base, e);
@@ -193,7 +195,7 @@ static int encode_layer(gr_ovf_writer *w, const gr_layer *l, const int *keys, gr
   for (size_t b = 0; b < l->nb; b++) {
     const gr_block *bk = &l->b[b];
     w->bpos[b] = here(w);
-    if (put_block(w, l, bk, keys ? keys[b] : bk->laser * 3 + bk->kind + 1, &a, e)) return e->code;
+    if (put_block(w, l, bk, keys ? keys[b] : gr_style_id(bk), &a, e)) return e->code;
   }
   for (int k = 0; k < 2; k++) {
     w->lo[k] = fmin(w->lo[k], a.lo[k]);

@@ -169,6 +169,9 @@ static int add_block(const gr_ovf_file *f, const OpenVectorFormat__VectorBlock *
       dir = GR_DIR_THIN;
   }
   if (gr_layer_add(l, shape, kind, vb->laser_index, dir, *xy, n)) return gr_fail(e, GR_EMEM, "out of memory");
+  int skin = lp ? (int)vb->lpbf_metadata->skin_type : 0; /* regions.h: down-/up-skin */
+  l->b[l->nb - 1].region = skin == OPEN_VECTOR_FORMAT__VECTOR_BLOCK__LPBFMETADATA__SKIN_TYPE__DOWN_SKIN ? GR_DOWNSKIN
+                           : skin == OPEN_VECTOR_FORMAT__VECTOR_BLOCK__LPBFMETADATA__SKIN_TYPE__UP_SKIN ? GR_UPSKIN : GR_CORE;
   return GR_OK;
 }
 

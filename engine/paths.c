@@ -274,16 +274,21 @@ int gr_layer_add(gr_layer *l, int shape, int kind, int laser, int dir,
   if (gr_grow(&l->xy, &l->cappts, l->npts + n, 2 * sizeof(double))) return GR_EMEM;
   if (gr_grow(&l->b, &l->capb, l->nb + 1, sizeof *l->b)) return GR_EMEM;
   if (n) memcpy(l->xy + 2 * l->npts, xy, n * 2 * sizeof(double)); /* l->xy may be NULL when n == 0 */
-  l->b[l->nb++] = (gr_block){shape, kind, laser, dir, l->npts, n};
+  l->b[l->nb++] = (gr_block){shape, kind, laser, dir, l->npts, n, GR_CORE};
   l->npts += n;
   return GR_OK;
 }
 
 int gr_layer_add_segment(gr_layer *l, int kind, int laser, double x0,
                          double y0, double x1, double y1) {
+  return gr_layer_add_segment_r(l, kind, GR_CORE, laser, x0, y0, x1, y1);
+}
+
+int gr_layer_add_segment_r(gr_layer *l, int kind, int region, int laser, double x0,
+                           double y0, double x1, double y1) {
   double s[4] = {x0, y0, x1, y1};
   gr_block *last = l->nb ? &l->b[l->nb - 1] : NULL;
-  if (last && last->shape == GR_SEGMENTS && last->kind == kind &&
+  if (last && last->shape == GR_SEGMENTS && last->kind == kind && last->region == region &&
       last->laser == laser && last->start + last->n == l->npts) {
     if (gr_grow(&l->xy, &l->cappts, l->npts + 2, 2 * sizeof(double))) return GR_EMEM;
     memcpy(l->xy + 2 * l->npts, s, sizeof s);
@@ -291,7 +296,9 @@ int gr_layer_add_segment(gr_layer *l, int kind, int laser, double x0,
     last->n += 2;
     return GR_OK;
   }
-  return gr_layer_add(l, GR_SEGMENTS, kind, laser, 2, s, 2);
+  if (gr_layer_add(l, GR_SEGMENTS, kind, laser, 2, s, 2)) return GR_EMEM;
+  l->b[l->nb - 1].region = region;
+  return GR_OK;
 }
 
 int gr_layer_append(gr_layer *dst, const gr_layer *src, double dx, double dy) {

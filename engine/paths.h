@@ -60,7 +60,18 @@ typedef struct gr_block {
   int dir;         /* CLI direction: 1 CCW outer, 0 CW hole, 2 open (polylines),
                       GR_DIR_THIN: an open thin-wall centre line (written as 2) */
   size_t start, n; /* points xy[2*start .. 2*(start+n)) */
+  int region;      /* enum gr_region (regions.h); 0 = the lattice core */
 } gr_block;
+/* Regions with their own build styles (regions.h). The CLI id of a block is
+ * region * GR_REGION_IDS + laser * 3 + kind + 1: region 0 keeps the ids
+ * 1..48 of before. */
+enum gr_region { GR_CORE = 0, GR_SKIN = 1, GR_THIN = 2, GR_DOWNSKIN = 3, GR_UPSKIN = 4, GR_NREGIONS = 5 };
+#define GR_REGION_IDS 48 /* ids per region: 16 lasers x 3 kinds */
+static inline int gr_style_id(const gr_block *b) { return b->region * GR_REGION_IDS + b->laser * 3 + b->kind + 1; }
+static inline const char *gr_region_name(int r) {
+  static const char *const n[GR_NREGIONS] = {"core", "skin", "thin", "downskin", "upskin"};
+  return r >= 0 && r < GR_NREGIONS ? n[r] : "?";
+}
 typedef struct gr_layer {
   double z;        /* CLI layer height z_k, mm (geometry from z_k - t/2) */
   double *xy;
@@ -83,6 +94,10 @@ int gr_layer_add(gr_layer *l, int shape, int kind, int laser, int dir,
  * the same kind and laser, else start a new block. */
 int gr_layer_add_segment(gr_layer *l, int kind, int laser, double x0,
                          double y0, double x1, double y1);
+/* The same for a segment of a region (gr_region): a new block when the
+ * region changes. */
+int gr_layer_add_segment_r(gr_layer *l, int kind, int region, int laser, double x0,
+                           double y0, double x1, double y1);
 int gr_layer_append(gr_layer *dst, const gr_layer *src, double dx, double dy);
 /* Scan length of a block and of all blocks of a kind (mm). */
 double gr_block_length(const gr_layer *l, const gr_block *b);

@@ -18,6 +18,7 @@
 #include "classify.h"
 #include "job.h"
 #include "lasers.h"
+#include "regions.h"
 #include "stream.h"
 
 gr_job_opts gr_job_defaults(void) {
@@ -124,6 +125,7 @@ void gr_job_free(gr_job *j) {
     free(j->cls[c].sig);
   }
   free(j->cls);
+  gr_regions_free(j->regions);
   free(j->vspec);
   free(j->vlaser);
   free(j->vcls);
@@ -233,9 +235,11 @@ static int run_templates(gr_job *j, gr_build *ba, int ga, int gb, const gr_job_r
   double t1 = gr_now();
   int n = 0;
   for (int c = 0; c < j->ncls; c++) ba->items[c] = 0;
+  int below, above; /* regions.h: down-/up-skin read the layers around */
+  gr_regions_margin(j, &below, &above);
   for (int k = 0; k < j->grid.n[2]; k++) {
     int g0 = gr_grid_row_first(&j->grid, k), g1 = g0 + gr_grid_row_layers(&j->grid, k) - 1;
-    if (g1 < ga || g0 > gb) continue;
+    if (g1 < ga - below || g0 > gb + above) continue;
     for (int q = 0; q < j->rowcount[k]; q++) ba->items[j->vcls[j->roworder[(size_t)k * j->rowlen + q]]] = 1;
   }
   for (int c = 0; c < j->ncls; c++)
@@ -277,6 +281,10 @@ int gr_job_run(gr_job *j, const gr_job_run_opts *r, gr_err *e) {
   j->st_dropped = 0;
   j->st_split = 0;
   j->warning[0] = 0;
+  int below, above;
+  gr_regions_margin(j, &below, &above);
+  if (r->direct && below + above > 0)
+    return gr_fail(e, GR_EARG, "down-skin and up-skin regions need every layer's template: not with kb=off (direct)");
   int rc = gr_classify_run(j, r->direct, e);
   if (rc) return rc;
   if ((rc = gr_classify_rows(j, e))) return rc;

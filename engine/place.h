@@ -28,6 +28,7 @@ typedef struct gr_machine {
   double polygon_delay;                   /* s per block */
   double recoat_time;                     /* s per layer */
   double stitch;                          /* overlap where two lasers meet, mm (stitch.h) */
+  double rspeed[GR_NREGIONS];             /* scan speed of regions 1.. (regions.h), mm/s */
 } gr_machine;
 gr_machine gr_machine_default(int n);
 
@@ -61,6 +62,9 @@ typedef struct gr_job_stats {
   long short_loops;            /* closed contours shorter than the melt track, dropped */
   double short_length;         /* their total length, mm */
   double solid_area;           /* sum over layers of the section area, mm^2 */
+  size_t region_vectors[GR_NREGIONS]; /* scan vectors per region (regions.h) */
+  double region_length[GR_NREGIONS];  /* scan length per region, mm */
+  double region_time[GR_NREGIONS];    /* marking time per region (no jumps), s */
   double seconds[4];           /* wall time: classify, templates, layers, total */
 } gr_job_stats;
 

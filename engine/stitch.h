@@ -24,6 +24,7 @@ typedef struct gr_hseg {
   double s0, s1;         /* positions along the line direction (s0 < s1) */
   int laser;
   int voxel;             /* position in the row order */
+  int region;            /* enum gr_region (regions.h) */
 } gr_hseg;
 
 /* A contour chain: points p[0..m) (closed: p[m-1] meets p[0] within the

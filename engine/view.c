@@ -193,7 +193,7 @@ int gr_view_encode(const gr_layer *l, double quantum, gr_view_buf *b, gr_err *e)
   put_u(b, l->nb);
   for (size_t i = 0; i < l->nb; i++) {
     const gr_block *bk = &l->b[i];
-    put_s(b, bk->laser * 3 + bk->kind + 1);
+    put_s(b, gr_style_id(bk));
     put_u(b, (uint64_t)bk->kind);
     put_u(b, (uint64_t)bk->laser);
     put_u(b, (uint64_t)bk->shape);

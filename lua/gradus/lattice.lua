@@ -65,6 +65,7 @@ M.PARAMS = {
   { "domain", "", { allow = { userdata = true }, help = "design domain: an STL file of the part or an expression negative inside" } },
   { "skin", 0.0, { unit = "mm", min = 0, max = 10, help = "solid skin depth along the domain's boundary" } },
   { "faces", true, { help = "contour the lattice where the box of cells cuts it" } },
+  { "regions", "", { help = "build styles per region (skin, thin, downskin, upskin): a process profile with regions:, or default (Ti-6Al-4V); empty: none" } },
   { "qualify", false, { allow = FN, help = "verify every template built and qualify it (or a Lua rule)" } },
   -- design by density (gradus.density, doc/density.md): a target instead of thickness
   { "density", "", { kind = "expr", empty = true, min = 1e-6, max = 1, allow = FN,
@@ -195,6 +196,11 @@ local function run(p, out)
   else
     machine = lasers.default(p.lasers)
   end
+  local rg = require("gradus.regions").load(p.regions) -- nil without regions
+  if rg then
+    require("gradus.regions").fit(rg, p)
+    machine = require("gradus.regions").machine(rg, machine)
+  end
   local job = gradus.place.job {
     cell = p.cell, origin = origin, cells = cells, layer = p.layer, hatch = p.hatch,
     beam_offset = p.beam_offset ~= "auto" and p.beam_offset or nil, contours = p.contours,
@@ -204,6 +210,7 @@ local function run(p, out)
     faces = p.faces, verify = p.qualify and true or false,
   }
   job:machine(machine)
+  if rg then require("gradus.regions").job(rg, job) end
   local specs = {}
   local dens = require("gradus.density").prepare(p, origin, cells, out)
   local function spec_of(surface, thickness, inside)
@@ -283,6 +290,7 @@ local function run(p, out)
         kind = kind, power = las[kind].power, speed = las[kind].speed, jump_speed = machine.jump_speed }
     end
   end
+  if rg then require("gradus.regions").styles(rg, machine, styles) end
   local st, kept = job:run {
     output = out, format = format, styles = styles, name = out and out:match("([^/]+)$"),
     jump_delay = machine.jump_delay, polygon_delay = machine.polygon_delay, kb = kb ~= "off" and (kb or true) or false,

@@ -8,10 +8,11 @@ local M = {}
 
 -- key -> the lattice parameter whose declaration checks it
 M.KEYS = { name = false, voxel = "cell", layer = "layer", hatch = "hatch", beam_offset = "beam_offset",
-  contours = "contours", angle = "angle", rotation = "rotation", pattern = "pattern" }
+  contours = "contours", angle = "angle", rotation = "rotation", pattern = "pattern", regions = false }
 
 --- M.process(path) -> table of the profile's values (name, voxel, layer,
--- hatch, beam_offset, contours, angle, rotation, pattern; each optional).
+-- hatch, beam_offset, contours, angle, rotation, pattern, regions (checked
+-- by gradus.regions.check); each optional).
 function M.process(path)
   local p, marks = gradus.yaml.load(path, { marks = true })
   if type(p) ~= "table" then error(("%s: a process profile must be a mapping"):format(path), 0) end
@@ -32,6 +33,7 @@ function M.process(path)
       end
       v = res
     end
+    if k == "regions" then v = require("gradus.regions").check(v, path, marks) end
     out[k] = v
   end
   return out

@@ -1,0 +1,55 @@
+/* regions.h: regions of a part with their own build styles (skin, thin-wall
+ * centre lines, down-skin, up-skin; the rest is the lattice core).
+ *
+ * Takes: the job (templates of every layer, domain and skin), the regions
+ * asked for, n layers below (down-skin) and above (up-skin), and the scan
+ * speed of each region (time estimates). Gives, while a layer is assembled
+ * (assemble.h): each hatch segment of a voxel cut where it enters or leaves
+ * a region, every piece tagged with its region (gr_block.region, paths.h);
+ * thin-wall centre lines tagged GR_THIN. The CLI id of a block is
+ * region * 48 + laser * 3 + kind + 1 (paths.h gr_style_id), so a job
+ * without regions writes exactly what it wrote before.
+ *
+ * Definitions (doc/api/regions.md): the "solid" of layer k inside voxel
+ * column (i, j) is the hatch region of its template layer (the section
+ * inset by the contour band: what is hatched). A hatch point p of layer g
+ *  - is down-skin when p is outside the solid of one of layers g-1 .. g-n
+ *    (below layer 1 is the build plate: solid);
+ *  - else up-skin when p is outside the solid of one of layers g+1 .. g+n
+ *    (above the last layer: void);
+ *  - else skin when the design domain has a skin and domain(p) >= -skin
+ *    (the solid band along the domain, build.c's definition);
+ *  - else core.
+ * A region not asked for falls through to the next rule. Contours keep the
+ * core's contour style (only thin-wall lines get their own). */
+#ifndef GR_REGIONS_H
+#define GR_REGIONS_H
+#include "place.h"
+#include "stitch.h"
+
+struct gr_regions;
+
+typedef struct gr_regions_opts {
+  int mask;                  /* bit r set: region r (GR_SKIN..GR_UPSKIN) has its own style */
+  int down, up;              /* layers looked at below / above, 1..64 */
+  double speed[GR_NREGIONS]; /* scan speed per region, mm/s (index 0 unused: the machine's) */
+} gr_regions_opts;
+
+/* Give job j its regions (copied). Errors (GR_EARG): an unknown region bit,
+ * layers outside 1..64, a speed not finite and > 0 for a region asked for.
+ * Call after the machine is set (gr_job_set_machine resets the speeds). */
+int gr_job_set_regions(gr_job *j, const gr_regions_opts *o, gr_err *e);
+/* The regions asked for (bit mask, 0 = none). */
+int gr_regions_mask(const gr_job *j);
+/* Layers below and above the layer range [ga, gb] that the down- and
+ * up-skin tests read (0 without those regions). */
+void gr_regions_margin(const gr_job *j, int *below, int *above);
+void gr_regions_free(struct gr_regions *r);
+/* Cut the hatch segments (*segs)[a .. *n) of voxel v (row slot order kept,
+ * each segment replaced by its pieces in order) in global layer g by
+ * region; pieces tagged in gr_hseg.region. No-op without regions. */
+int gr_regions_split(gr_job *j, int g, int v, gr_hseg **segs, size_t *n, size_t *cap, size_t a, gr_err *e);
+/* Tag the thin-wall centre lines of an assembled layer GR_THIN (when asked). */
+void gr_regions_tag_thin(const gr_job *j, gr_layer *l);
+
+#endif

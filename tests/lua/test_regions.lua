@@ -1,0 +1,241 @@
+-- Regions with their own build styles (gradus.regions, engine/regions.c): a
+-- solid T (a stem under a wider slab, all skin) whose down-skin and up-skin
+-- areas are known exactly; ids, powers and speeds against the profile; the
+-- hatch length kept whole by the cuts; nothing changes without regions;
+-- thin-wall lines; bad profiles refused at file:line.
+local t = require "gradus.testing"
+local lattice = require "gradus.lattice"
+local tmp = os.tmpname()
+os.remove(tmp)
+gradus.mkdir(tmp)
+
+local function mx(...)
+  local a = { ... }
+  local e = a[1]
+  for i = 2, #a do e = ("max(%s,%s)"):format(e, a[i]) end
+  return e
+end
+-- stem [1.5, 2.5] x [0.5, 3.5] x [0, 2], slab [0.5, 3.5]^2 x [2, 2.6] (mm); skin 1 mm
+-- makes both solid (half-widths 0.5 and 0.3 mm)
+local T = ("min(%s,%s)"):format(mx("1.5-x", "x-2.5", "0.5-y", "y-3.5", "z-2"),
+  mx("0.5-x", "x-3.5", "0.5-y", "y-3.5", "2-z", "z-2.6"))
+local D = 0.1 -- hatch spacing and layer (mm)
+
+local function params(o)
+  local p = lattice.params()
+  p.size, p.layer, p.hatch, p.res, p.kb, p.thickness = "4,4,2.6", D, D, 12, tmp .. "/kb", "0.08"
+  p.domain, p.skin, p.regions, p.surface = T, 1, "default", "primitive"
+  for k, v in pairs(o or {}) do p[k] = v end
+  return p
+end
+
+-- per layer: hatch length x spacing (an area, mm^2) per region, and the
+-- down-skin hatch midpoints
+local function areas(path)
+  local cli = gradus.cli.read(path)
+  local out, mids = {}, {}
+  for g, l in ipairs(cli.layers) do
+    out[g] = {}
+    for _, b in ipairs(l:blocks()) do
+      if b.kind == "hatch" then
+        local p = b.points
+        for q = 1, #p, 4 do
+          out[g][b.region] = (out[g][b.region] or 0) + math.sqrt((p[q + 2] - p[q]) ^ 2 + (p[q + 3] - p[q + 1]) ^ 2) * D
+          if b.region == "downskin" then mids[#mids + 1] = { (p[q] + p[q + 2]) / 2, (p[q + 1] + p[q + 3]) / 2 } end
+        end
+      end
+    end
+  end
+  return out, cli, mids
+end
+
+local out = tmp .. "/t.cli"
+local st = lattice.run(params(), out)
+local h = st.effective.beam_offset -- hatch region: the section inset by b (one contour, no gap)
+
+t.test("T: down-skin exactly on the 3 slab layers over void, with the overhang's area", function()
+  local a, _, mids = areas(out)
+  local want = (3 - 2 * h) * 2 -- slab hatch region minus the stem's
+  for g = 1, #a do
+    local ds = a[g].downskin or 0
+    if g >= 21 and g <= 23 then
+      t.near(ds, want, D * 1.0, ("layer %d: down-skin area %.3f mm^2 = (3 - 2h) x 2 = %.3f within d x 1 mm"):format(g, ds, want))
+    else
+      t.eq(ds, 0, ("layer %d: no down-skin (stem on the plate, or slab over 3 slab layers)"):format(g))
+    end
+  end
+  local inside = 0
+  for _, m in ipairs(mids) do
+    if m[1] > 1.5 + h + 1e-6 and m[1] < 2.5 - h - 1e-6 then inside = inside + 1 end
+  end
+  t.eq(inside, 0, "no down-skin hatch over the stem's footprint")
+end)
+
+t.test("T: up-skin on the top 3 layers (whole slab), skin elsewhere, no core", function()
+  local a = areas(out)
+  for g = 1, #a do
+    local us, sk = a[g].upskin or 0, a[g].skin or 0
+    if g >= 24 and g <= 26 then
+      t.near(us, (3 - 2 * h) ^ 2, D * 1.0, ("layer %d: up-skin area %.3f = (3 - 2h)^2"):format(g, us))
+    else
+      t.eq(us, 0, ("layer %d: no up-skin"):format(g))
+    end
+    if g <= 23 then t.near(sk, (1 - 2 * h) * (3 - 2 * h), D * 1.0, ("layer %d: skin area %.3f = the stem's"):format(g, sk)) end
+    t.eq(a[g].core or 0, 0, ("layer %d: no core hatch (all within the 1 mm skin)"):format(g))
+  end
+end)
+
+t.test("T: a layer range reads the layers around it (21:26 as in the whole job)", function()
+  local o2 = tmp .. "/r.cli"
+  lattice.run(params { layers = "21:26" }, o2)
+  local a = areas(o2)
+  t.eq(#a, 6, "6 layers")
+  t.near(a[1].downskin or 0, (3 - 2 * h) * 2, D, "layer 21 down-skin as in the whole job")
+  t.near(a[4].upskin or 0, (3 - 2 * h) ^ 2, D, "layer 24 up-skin as in the whole job")
+end)
+
+t.test("ids, labels and manifest: each region's style as the profile gives it", function()
+  local man = gradus.yaml.load(tmp .. "/t.manifest.yaml")
+  local prof = require("gradus.regions").load("default")
+  local by = {}
+  for _, s in ipairs(man.styles) do by[s.id] = s end
+  local want = { [2] = { "core", prof.core }, [1] = { "core", prof.contour }, [50] = { "skin", prof.skin },
+    [97] = { "thin", prof.thin }, [146] = { "downskin", prof.downskin }, [194] = { "upskin", prof.upskin } }
+  for id, w in pairs(want) do
+    t.ok(by[id] ~= nil, ("manifest lists id %d"):format(id))
+    if by[id] then
+      t.eq(by[id].region, w[1], ("id %d region"):format(id))
+      t.eq(by[id].power, w[2].power, ("id %d power (W)"):format(id))
+      t.eq(by[id].speed, w[2].speed, ("id %d speed (mm/s)"):format(id))
+    end
+  end
+  local _, cli = areas(out)
+  local labels = {}
+  for id, text in io.open(out):read("a"):gmatch("%$%$LABEL/(%d+),([^\n]*)") do labels[tonumber(id)] = text end
+  local seen, bad = {}, 0
+  for _, l in ipairs(cli.layers) do
+    for _, b in ipairs(l:blocks()) do
+      seen[b.id] = true
+      local r = ({ "core", "skin", "thin", "downskin", "upskin" })[(b.id - 1) // 48 + 1]
+      if not by[b.id] or by[b.id].region ~= b.region or r ~= b.region then bad = bad + 1 end
+    end
+  end
+  t.eq(bad, 0, "every block's id is in the manifest with the block's region")
+  t.ok(seen[146] and seen[194] and seen[50], "the file uses the down-skin, up-skin and skin hatch ids")
+  for _, id in ipairs({ 50, 146, 194 }) do
+    t.eq(labels[id], "laser1-" .. by[id].region .. "-hatch", ("header label of %d names its region"):format(id))
+  end
+end)
+
+t.test("stats: region lengths add up, scan time = length / the region's speed", function()
+  local r = st.regions
+  local prof = require("gradus.regions").load("default")
+  t.near(r.downskin.scan_time_s, r.downskin.length / prof.downskin.speed, 1e-9, "down-skin time")
+  t.near(r.upskin.scan_time_s, r.upskin.length / prof.upskin.speed, 1e-9, "up-skin time")
+  local sum = 0
+  for _, k in ipairs({ "core", "skin", "thin", "downskin", "upskin" }) do sum = sum + r[k].length end
+  local all = st.vectors.contour.length + st.vectors.hatch.length + st.vectors.edge.length
+  t.near(sum, all, 1e-6 * all, "regions' lengths = all vectors' length")
+end)
+
+local function body(path)
+  local s = io.open(path, "rb"):read("a")
+  return (s:gsub("%$%$DATE/%d+", ""))
+end
+
+-- a small lattice with thin walls (thickness 0.02 mm), first layers
+local SMALL = { domain = "", skin = 0, size = "", cells = "1,1,1", pictures = "12,15", kb_store = "all", thickness = "0.02", layers = "12:17", layer = 0.04, hatch = 0.05 }
+local KEPT_PLAIN, KEPT_REGIONS -- layers 12 and 15 as the engine gave them
+local function small(regions, path)
+  local q = {}
+  for k, v in pairs(SMALL) do q[k] = v end
+  q.regions = regions
+  return lattice.run(params(q), path)
+end
+
+t.test("no regions asked: the same CLI bytes, also from a profile with an empty regions: section", function()
+  local f = io.open(tmp .. "/empty.yaml", "w")
+  f:write("name: none\nregions: {}\n")
+  f:close()
+  small(tmp .. "/empty.yaml", tmp .. "/e.cli")
+  local plain
+  plain, KEPT_PLAIN = small("", tmp .. "/p.cli")
+  t.ok(body(tmp .. "/e.cli") == body(tmp .. "/p.cli"), "same CLI bytes (date aside)")
+  t.ok(not body(tmp .. "/p.cli"):find("LABEL/49,"), "no region labels")
+  t.eq(plain.regions, nil, "no regions in the stats without regions")
+  local s
+  s, KEPT_REGIONS = small("default", tmp .. "/thin.cli")
+  t.near(s.vectors.hatch.length, plain.vectors.hatch.length, 1e-6 * plain.vectors.hatch.length,
+    "the cuts keep the hatch length of the job without regions")
+  t.ok(s.regions.downskin.length > 0, "the lattice has down-skin hatch")
+end)
+
+t.test("thin-wall centre lines get the thin style", function()
+  local function count(kept)
+    local n, mismatch = 0, 0
+    for _, g in ipairs({ 12, 15 }) do
+      for _, b in ipairs(kept[g]:blocks()) do
+        if b.thin then n = n + 1 end
+        if KEPT_REGIONS == kept and b.thin ~= (b.region == "thin" and b.id == 97) then mismatch = mismatch + 1 end
+      end
+    end
+    return n, mismatch
+  end
+  local n0 = count(KEPT_PLAIN)
+  local n1, bad = count(KEPT_REGIONS)
+  t.ok(n0 > 0, ("the lattice has thin-wall lines (%d on layers 12 and 15)"):format(n0))
+  t.eq(n1, n0, "as many thin-wall lines with regions as without")
+  t.eq(bad, 0, "a block has the thin style (id 97) exactly when it is a thin-wall line")
+end)
+
+t.test("OVF: down-skin and up-skin blocks carry lpbf_metadata.skin_type DOWN_SKIN / UP_SKIN", function()
+  -- the paper's graded sheet (hatched walls) on the top layers of one cell, as CLI and OVF
+  local q = { domain = "", skin = 0, size = "", cells = "1,1,1", layers = "44:50", layer = 0.04, hatch = 0.05,
+    kb_store = "all", thickness = lattice.EQ8 }
+  lattice.run(params(q), tmp .. "/o.cli")
+  lattice.run(params(q), tmp .. "/o.ovf")
+  local n, back = {}, {} -- blocks per region: the CLI, and the OVF read back
+  for _, l in ipairs(gradus.cli.read(tmp .. "/o.cli").layers) do
+    for _, b in ipairs(l:blocks()) do n[b.region] = (n[b.region] or 0) + 1 end
+  end
+  for _, l in ipairs(gradus.cli.read(tmp .. "/o.ovf").layers) do
+    for _, b in ipairs(l:blocks()) do back[b.region] = (back[b.region] or 0) + 1 end
+  end
+  local bytes = io.open(tmp .. "/o.ovf", "rb"):read("a")
+  -- a hatch block's lpbf_metadata (101, length 2): skin_type (2) = 1 or 2, part_area VOLUME (0) omitted
+  local function count(pat) local k = 0 for _ in bytes:gmatch(pat) do k = k + 1 end return k end
+  t.ok((n.downskin or 0) > 0 and (n.upskin or 0) > 0, "the lattice has down-skin and up-skin blocks")
+  t.eq(count("\xaa\x06\x02\x10\x01"), n.downskin, "one DOWN_SKIN mark per down-skin block")
+  t.eq(count("\xaa\x06\x02\x10\x02"), n.upskin, "one UP_SKIN mark per up-skin block")
+  t.eq(back.downskin, n.downskin, "the OVF reader maps DOWN_SKIN back to the down-skin region")
+  t.eq(back.upskin, n.upskin, "and UP_SKIN to up-skin")
+end)
+
+local function profile(text)
+  local path = tmp .. "/bad.yaml"
+  local f = io.open(path, "w")
+  f:write(text)
+  f:close()
+  return path
+end
+
+t.test("bad profiles: file:line, nothing written", function()
+  local bad = tmp .. "/bad.cli"
+  t.raises(function() lattice.run(params { regions = profile("regions:\n  skin: {power: 200, speed: 900}\n  dowskin: {power: 1, speed: 1}\n") }, bad) end,
+    "bad.yaml:3:%d+: unknown key 'dowskin'.*downskin", "unknown region named with line and suggestion")
+  t.raises(function() lattice.run(params { regions = profile("regions:\n  skin: {power: -5, speed: 900}\n") }, bad) end,
+    "bad.yaml:2:%d+: regions.skin.power must be a positive number", "negative power")
+  t.raises(function() lattice.run(params { regions = profile("regions:\n  skin: {power: 5, speed: 900, focus: 1}\n") }, bad) end,
+    "bad.yaml:2:%d+: unknown key 'focus'", "unknown key in a style")
+  t.raises(function() lattice.run(params { regions = profile("regions:\n  skin: {power: 5, speed: 900, hatch: 0.08}\n") }, bad) end,
+    "bad.yaml:2:%d+: regions.skin.hatch = 0.08 mm differs.*not supported", "a second hatch spacing is refused, not ignored")
+  t.raises(function() lattice.run(params { regions = profile("regions:\n  thin: {power: 5, speed: 900, hatch: 0.1}\n") }, bad) end,
+    "bad.yaml:2:%d+: regions.thin.hatch: the thin region has no hatches", "hatch where there is none")
+  t.raises(function() lattice.run(params { regions = profile("regions:\n  downskin_layers: 0\n") }, bad) end,
+    "bad.yaml:2:%d+: regions.downskin_layers must be a whole number", "layer count")
+  t.raises(function() lattice.run(params { kb = "off" }, bad) end, "not with kb=off", "direct mode refused")
+  t.ok(io.open(bad, "r") == nil, "no CLI left behind")
+end)
+
+os.execute("rm -rf '" .. tmp .. "'")
+t.done()
