@@ -321,6 +321,19 @@ static int pl_layers(gr_plate *p, gr_cli_writer *w, int *const *num, double fl, 
   return rc;
 }
 
+
+/* Bit r set when a block of region r (paths.h) is in any part: the header
+ * then labels that region's styles too. */
+static int pl_regions(const gr_plate *p) {
+  int bits = 0;
+  for (int i = 0; i < p->n; i++)
+    for (size_t k = 0; k < p->part[i].n; k++) {
+      const gr_layer *l = p->part[i].layer[k];
+      for (size_t b = 0; l && b < l->nb; b++) bits |= 1 << l->b[b].region;
+    }
+  return bits;
+}
+
 int gr_plate_write(gr_plate *p, const char *out, const gr_plate_opts *o, gr_plate_info *info, gr_err *e) {
   memset(info, 0, sizeof *info);
   if (p->n < 1) return gr_fail(e, GR_EARG, "plate: no parts");
@@ -343,6 +356,7 @@ int gr_plate_write(gr_plate *p, const char *out, const gr_plate_opts *o, gr_plat
     h.units = o->units;
     h.layers = top;
     h.nlasers = o->nlasers > 0 ? o->nlasers : 1;
+    h.regions = pl_regions(p);
     h.buffered = 1;
     memcpy(h.lo, info->lo, sizeof h.lo);
     memcpy(h.hi, info->hi, sizeof h.hi);

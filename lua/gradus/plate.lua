@@ -16,10 +16,11 @@ local M = {}
 local function set(list) local t = {} for _, k in ipairs(list) do t[k] = true end return t end
 
 -- keys of the plate file and of a part (besides the lattice parameters)
-M.PLATE_KEYS = set { "name", "machine", "plate", "layer", "format", "kb", "threads", "res", "picture_layer", "parts" }
+M.PLATE_KEYS = set { "name", "machine", "plate", "layer", "format", "kb", "threads", "res", "picture_layer", "regions", "parts" }
 M.PLACE_KEYS = set { "name", "at", "rotation", "recipe", "params" }
 -- lattice parameters a part may not set: the plate decides them
-M.PLATE_OWNED = set { "machine", "lasers", "format", "split", "layers", "pictures", "verify", "origin", "kb", "threads" }
+M.PLATE_OWNED = set { "machine", "lasers", "format", "split", "layers", "pictures", "verify", "origin", "kb", "threads",
+  "regions" }
 
 local function where(d, t, k)
   local pos = d.marks and d.marks[t] and d.marks[t][k]
@@ -154,6 +155,13 @@ function M.load(file)
   d.kb = t.kb -- YAML reads `kb: off` as false
   if d.kb == false then d.kb = "off" elseif d.kb == true then d.kb = nil end
   if d.kb ~= nil and type(d.kb) ~= "string" then fail(d, t, "kb", "kb must be a directory, off, or left out (the default cache)") end
+  if t.regions ~= nil then -- one set of build styles for the plate: a CLI id means one power and speed
+    if type(t.regions) ~= "string" then fail(d, t, "regions", "regions must be default or a process profile file") end
+    d.regions = t.regions == "default" and "default" or rel(file, t.regions)
+    local okr, rg = pcall(require("gradus.regions").load, d.regions)
+    if not okr then fail(d, t, "regions", "%s", tostring(rg)) end
+    d.rg = rg
+  end
   if t.picture_layer ~= nil then
     if math.type(t.picture_layer) ~= "integer" or t.picture_layer < 1 then
       fail(d, t, "picture_layer", "picture_layer must be a layer number (1, 2, ...), got %s", raw(t.picture_layer))
@@ -300,7 +308,7 @@ local function run_part(d, part, tmp)
   give("machine", part_machine(d, part.run_lasers, ("%s/machine%d.yaml"):format(tmp, part.index)))
   give("layer", tostring(d.layer))
   give("format", "binary-long")
-  for _, k in ipairs({ "kb", "threads", "res" }) do
+  for _, k in ipairs({ "kb", "threads", "res", "regions" }) do
     if d[k] ~= nil and params[k] == nil then give(k, tostring(d[k])) end
   end
   if not recipe then recipe = gradus.root .. "/recipes/lattice.lua" end
@@ -475,6 +483,15 @@ local function run(o)
         styles[#styles + 1] = { id = (l - 1) * 3 + ki, label = las.name .. "-" .. kind, laser = las.name, kind = kind,
           power = las[kind].power, speed = las[kind].speed, jump_speed = d.machine.jump_speed }
       end
+    end
+    if d.rg then -- the styles the parts ran with: core and contour from the profile, then each region's
+      local rmod = require "gradus.regions"
+      local m = rmod.machine(d.rg, d.machine)
+      for _, sty in ipairs(styles) do
+        local las = m.lasers[(sty.id - 1) // 3 + 1]
+        sty.power, sty.speed = las[sty.kind].power, las[sty.kind].speed
+      end
+      rmod.styles(d.rg, m, styles)
     end
     local mparts = {}
     for i, p in ipairs(parts) do

@@ -157,6 +157,36 @@ refused("a part out of every laser's reach",
   ("layer: 0.2\nres: 8\nkb: %s/kb\nmachine: %s\nparts:\n"):format(tmp, machine) .. one,
   "part 'cube' is out of every laser's reach.*left %[0, 40%]")
 
+refused("regions set in a part (a plate has one set of build styles)", HEAD .. "parts:\n" .. one .. "    regions: default\n",
+  ":14:5: unknown key 'regions' in part 'cube' %('regions' is set for the whole plate%)")
+
+t.test("regions for the whole plate: region ids in the CLI, labelled, with the profile's styles in the manifest", function()
+  local file = write("regions.yaml", HEAD .. "regions: default\nparts:\n  - name: cube\n    at: [50, 50]\n    size: [2, 2, 1.2]\n" .. PART)
+  local out = tmp .. "/regions.cli"
+  plate.run { plate = file, output = out }
+  local rg = require("gradus.regions").load("default")
+  local up_id = 4 * 48 + 0 * 3 + 1 + 1 -- region upskin (4), laser 1, hatch
+  local cli = gradus.cli.read(out)
+  local upskin = 0 -- a lattice's sloping walls face up on every layer, the top layers all over
+  for _, l in ipairs(cli.layers) do
+    for _, b in ipairs(l:blocks()) do
+      if b.region == "upskin" then upskin = upskin + 1; t.eq(b.id % 48, (b.id - 1) % 3 + 1, "laser 1 id") end
+    end
+  end
+  t.ok(upskin > 0, "up-skin blocks in the plate's CLI")
+  local f = assert(io.open(out))
+  local head = f:read(4096)
+  f:close()
+  t.ok(head:find("$$LABEL/" .. up_id .. ",laser1-upskin-hatch", 1, true), "the header labels the up-skin hatch style")
+  local man = gradus.yaml.load(tmp .. "/regions.manifest.yaml")
+  local seen = {}
+  for _, sty in ipairs(man.styles) do seen[sty.id] = sty end
+  t.ok(seen[up_id] and seen[up_id].region == "upskin", "manifest style " .. up_id .. " is the up-skin hatch")
+  t.eq(seen[up_id].power, rg.upskin.power, "up-skin power from the profile")
+  t.eq(seen[up_id].speed, rg.upskin.speed, "up-skin speed from the profile")
+  t.eq(seen[2].power, rg.core.power, "core hatch power from the profile, as the part ran")
+end)
+
 t.test("a recipe part: its footprint is the hull of its vectors; lasers reassigned to the one that reaches it", function()
   local recipe = write("cube_recipe.lua", [[
 local lattice = require "gradus.lattice"
