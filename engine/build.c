@@ -314,6 +314,33 @@ static gr_cptab *make_table(gr_build *a, int c, gr_field *g, gr_err *e) {
   return t;
 }
 
+/* The cache entry of group key `key`, or NULL. */
+static gr_build_group *cache_find(gr_build *a, const char *key) {
+  for (int i = 0; i < GR_BUILD_CACHE; i++)
+    if (a->cache[i].key[0] && strcmp(a->cache[i].key, key) == 0) return &a->cache[i];
+  return NULL;
+}
+
+/* Keep group key's canonical field g and table t (the cache takes t and a
+ * reference to g) in place of the least recently used entry not used in
+ * this call; 0 when every entry is in use (the caller keeps t). */
+static int cache_put(gr_build *a, const char *key, gr_field *g, gr_cptab *t) {
+  gr_build_group *v = NULL;
+  for (int i = 0; i < GR_BUILD_CACHE; i++) {
+    gr_build_group *c = &a->cache[i];
+    if (c->key[0] && c->used == a->calls) continue;
+    if (!v || !c->key[0] || (v->key[0] && c->used < v->used)) v = c;
+  }
+  if (!v) return 0;
+  gr_cptab_free(v->tab);
+  gr_field_free(v->field);
+  snprintf(v->key, sizeof v->key, "%s", key);
+  v->field = gr_field_ref(g);
+  v->tab = t;
+  v->used = a->calls;
+  return 1;
+}
+
 /* Progress of a part of the work, reported as a share of the whole. */
 typedef struct prog_part { const gr_job_run_opts *r; long base, span, total; } prog_part;
 static void prog_part_fn(void *ud, const char *stage, long d, long n) {
@@ -333,8 +360,11 @@ int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, g
   a->fref = malloc(2 * (n + 1) * sizeof *a->fref);
   a->fkind = malloc(2 * (n + 1) * sizeof *a->fkind);
   a->gfield = calloc(n + 1, sizeof *a->gfield);
+  a->ghit = calloc(n + 1, sizeof *a->ghit);
   char (*keys)[128] = malloc((n + 1) * sizeof *keys);
-  if (!cs || !gid || !a->fc || !a->fref || !a->fkind || !a->gfield || !keys) rc = rc ? rc : gr_fail(e, GR_EMEM, "out of memory");
+  a->calls++;
+  if (!cs || !gid || !a->fc || !a->fref || !a->fkind || !a->gfield || !a->ghit || !keys)
+    rc = rc ? rc : gr_fail(e, GR_EMEM, "out of memory");
   long total = 0, base = 0;
   for (int q = 0; q < n && rc == GR_OK; q++) {
     gid[q] = -1;
@@ -344,6 +374,10 @@ int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, g
     if (!keys[q][0]) continue;
     for (int p = 0; p < q && gid[q] < 0; p++)
       if (gid[p] == p && strcmp(keys[p], keys[q]) == 0) gid[q] = p;
+    if (gid[q] < 0 && (a->ghit[q] = cache_find(a, keys[q]))) {
+      a->ghit[q]->used = a->calls;
+      a->gfield[q] = gr_field_ref(a->ghit[q]->field);
+    }
     if (gid[q] < 0) gid[q] = q;
   }
   /* fields: the groups' canonical fields and unshared classes, then the members */
@@ -351,7 +385,7 @@ int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, g
     int nf = 0;
     for (int q = 0; q < n; q++) {
       if (!j->cls[a->items[q]].need) continue;
-      if (pass == 0 && gid[q] == q) { a->fc[nf] = a->items[q]; a->fref[nf] = q; a->fkind[nf++] = 1; }
+      if (pass == 0 && gid[q] == q && !a->ghit[q]) { a->fc[nf] = a->items[q]; a->fref[nf] = q; a->fkind[nf++] = 1; }
       if ((gid[q] >= 0) != pass) continue;
       a->fc[nf] = a->items[q];
       a->fref[nf] = gid[q];
@@ -366,8 +400,9 @@ int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, g
     else
       for (int p = q; p < n; p++)
         if (gid[p] == q) cs[nc++] = a->items[p];
-    gr_cptab *t = NULL;
-    if (gid[q] >= 0 && !(t = make_table(a, a->items[q], a->gfield[q], e))) { rc = e->code ? e->code : GR_EMEM; break; }
+    gr_cptab *t = a->ghit[q] ? a->ghit[q]->tab : NULL;
+    if (gid[q] >= 0 && !t && !(t = make_table(a, a->items[q], a->gfield[q], e))) { rc = e->code ? e->code : GR_EMEM; break; }
+    if (gid[q] >= 0 && !a->ghit[q] && cache_put(a, keys[q], a->gfield[q], t)) a->ghit[q] = cache_find(a, keys[q]);
     a->tab = t;
     long nl = 0;
     for (int p = 0; p < nc; p++) nl += j->cls[cs[p]].t->nl;
@@ -376,16 +411,18 @@ int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, g
     if ((rc = make_work(a, cs, nc, e)) == GR_OK)
       rc = gr_pool_for(a->nwork, layers_item, a, j->o.threads, prog ? prog_part_fn : NULL, prog ? &pp : NULL, stage, e);
     a->tab = NULL;
-    gr_cptab_free(t);
+    if (!a->ghit[q]) gr_cptab_free(t);
     base += nl;
   }
   free(keys);
   free(gid);
   for (int q = 0; q < n && a->gfield; q++) gr_field_free(a->gfield[q]);
   free(a->gfield);
+  free(a->ghit);
   free(a->fc); free(a->fref); free(a->fkind);
   a->fc = a->fref = a->fkind = NULL;
   a->gfield = NULL;
+  a->ghit = NULL;
   free(cs);
   gr_err e2;
   gr_err_clear(&e2);
@@ -406,4 +443,9 @@ void gr_build_done(gr_build *a) {
   free(a->wa);
   free(a->wb);
   a->wc = a->wa = a->wb = NULL;
+  for (int i = 0; i < GR_BUILD_CACHE; i++) {
+    gr_cptab_free(a->cache[i].tab);
+    gr_field_free(a->cache[i].field);
+    memset(&a->cache[i], 0, sizeof a->cache[i]);
+  }
 }
