@@ -102,6 +102,17 @@ static gr_field *voxel_field(gr_job *j, int v, int trimmed, gr_field *like, cons
   return g;
 }
 
+/* Once a template is built, qualified and stored (or read from the knowledge
+ * base), its sections (the section rings in a window wider than the voxel,
+ * the largest part of it) serve nothing more: layer assembly uses the
+ * contours, faces and hatch regions. Dropped to keep streamed bands small. */
+static void drop_sections(gr_tmpl *t) {
+  for (int i = 0; t && i < t->nl; i++) {
+    gr_rings_free(t->l[i].section);
+    t->l[i].section = NULL;
+  }
+}
+
 /* Phase 1, per class: take the template from the knowledge base, or make the
  * class's field and allocate its template. */
 static int prepare_item(void *arg_, int item, gr_err *e) {
@@ -128,6 +139,7 @@ static int prepare_item(void *arg_, int item, gr_err *e) {
     if (r) {
       gr_tmpl *t = gr_tmpl_from_record(&j->o, r, nl);
       gr_template_free(r);
+      drop_sections(t);
       if (t) {
         gr_tmpl_free(cl->t);
         cl->t = t;
@@ -242,6 +254,7 @@ static int store_item(void *arg_, int item, gr_err *e) {
     gr_template_free(r);
     if (rc) return rc;
   }
+  drop_sections(cl->t);
   return GR_OK;
 }
 
