@@ -192,7 +192,20 @@ static int field_item(void *arg_, int item, gr_err *e) {
   return GR_OK;
 }
 
-/* Phase 2, per (class, layer chunk). */
+/* 1 if a built template of a class of `count` voxels goes to the knowledge
+ * base under policy kb_store (enum gr_kb_store): all, none, or reused = only
+ * when the class occurs more than once in the part. */
+static int should_store(int kb_store, int count) {
+  return kb_store == GR_KB_STORE_ALL || (kb_store == GR_KB_STORE_REUSED && count > 1);
+}
+
+/* 1 if class cl's template, once built, goes to the knowledge base. */
+static int will_store(const gr_build *a, const gr_vclass *cl) {
+  return a->kb && !cl->trimmed && a->jb < 0 && should_store(a->kb_store, cl->count);
+}
+
+/* Phase 2, per (class, layer chunk); the chunk's sections dropped at once
+ * when no knowledge-base record will need them (drop_sections). */
 static int layers_item(void *arg_, int item, gr_err *e) {
   gr_build *a = arg_;
   gr_job *j = a->j;
@@ -203,7 +216,12 @@ static int layers_item(void *arg_, int item, gr_err *e) {
   gr_grid_origin(&j->grid, cl->rep, in.vo);
   gr_grid_ijk(&j->grid, cl->rep, &i, &jj, &k);
   in.g0 = gr_grid_row_first(&j->grid, k);
-  return gr_tmpl_layers(&in, cl->t, cl->field, a->tab, a->wa[item], a->wb[item], e);
+  int rc = gr_tmpl_layers(&in, cl->t, cl->field, a->tab, a->wa[item], a->wb[item], e);
+  for (int q = a->wa[item]; rc == GR_OK && !will_store(a, cl) && q < a->wb[item]; q++) {
+    gr_rings_free(cl->t->l[q].section);
+    cl->t->l[q].section = NULL;
+  }
+  return rc;
 }
 
 /* Phase 2a, per table layer: the shared closest points. */
@@ -212,13 +230,6 @@ static int table_item(void *arg_, int item, gr_err *e) {
   gr_job *j = a->j;
   (void)j;
   return gr_cptab_layer(a->tab, item, e);
-}
-
-/* 1 if a built template of a class of `count` voxels goes to the knowledge
- * base under policy kb_store (enum gr_kb_store): all, none, or reused = only
- * when the class occurs more than once in the part. */
-static int should_store(int kb_store, int count) {
-  return kb_store == GR_KB_STORE_ALL || (kb_store == GR_KB_STORE_REUSED && count > 1);
 }
 
 static int store_item(void *arg_, int item, gr_err *e) {
@@ -240,7 +251,7 @@ static int store_item(void *arg_, int item, gr_err *e) {
     j->st.unqualified++;
     snprintf(j->st.unqualified_why, sizeof j->st.unqualified_why, "%.16s: %s", cl->key, why);
   }
-  if (a->kb && !cl->trimmed && a->jb < 0 && !should_store(a->kb_store, cl->count)) {
+  if (a->kb && !cl->trimmed && a->jb < 0 && !will_store(a, cl)) {
     pthread_mutex_lock(a->kbmu);
     j->st.kb_not_stored++;
     pthread_mutex_unlock(a->kbmu);
