@@ -36,6 +36,19 @@ bad=$(awk '/^\$\$LAYER\//{n++; next} /^\$\$GEOMETRYEND/{exit} n>0{b[n]=b[n] $0 "
   END{if (n != 80) {print "layers " n; exit} for (g = 1; g <= 40; g++) if (b[g] != b[g+40] || b[g] == "") {print "layer " g; exit}}' "$d/p.cli")
 [ -z "$bad" ] && pass "periodic, 2 lasers: rows 3-4 (templates kept from rows 1-2) repeat rows 1-2 exactly" ||
   fail "periodic layers" "$bad differs from 40 layers up"
+# the closest-point table kept across rows (cache hit in rows 2-3) against a
+# fresh one: row 3 alone (layers 41:60, nothing cached) = row 3 of the whole job
+Z="-D cells=1,1,3 -D format=ascii -D thickness=0.1+0.01*z"
+if run $Z -D kb=off -o "$d/z.cli" && run $Z -D kb=off -D layers=41:60 -o "$d/z3.cli"; then
+  body() { awk -v a="$2" -v b="$3" '/^\$\$LAYER\//{n++; z = $0; next} /^\$\$GEOMETRYEND/{exit} n >= a && n <= b {print z; print}' "$1"; }
+  if [ -n "$(body "$d/z3.cli" 1 20)" ] && [ "$(body "$d/z.cli" 41 60)" = "$(body "$d/z3.cli" 1 20)" ]; then
+    pass "row 3 with the closest points kept from rows 1-2 = row 3 computed alone"
+  else
+    fail "cached table" "row 3 differs from the same layers computed alone"
+  fi
+else
+  fail "jobs" "a z-graded job failed"
+fi
 r=$(val "$d/pw.yaml" reused)
 [ "$r" = 2 ] && cmp -s "$d/pw.cli" "$d/p.cli" && pass "warm knowledge base: both templates read, same CLI" ||
   fail "warm" "reused $r; $(cmp "$d/pw.cli" "$d/p.cli" | head -1)"
