@@ -8,6 +8,9 @@
  *                          placement, joining, boundary contours; lasers.h:
  *                          assignment, time estimates, statistics) -> sink
  *
+ * build and stream alternate band by band (one row of voxels): a template is
+ * built when its first row comes and released after its last (run_templates).
+ *
  * The job's state is job.h; doc/architecture.md draws the map. */
 #include "place.h"
 #include <math.h>
