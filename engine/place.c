@@ -276,7 +276,7 @@ static int run_templates(gr_job *j, gr_build *ba, int ga, int gb, const gr_job_r
       }
     double t1 = gr_now();
     ba->nitems = n;
-    rc = gr_build_classes(ba, NULL, "templates", e);
+    rc = gr_build_classes(ba, r, "templates", e); /* progress per band */
     j->st.seconds[1] += gr_now() - t1;
     held += n;
     if (held > j->st.held_max) j->st.held_max = held;
