@@ -5,7 +5,8 @@
 -- size measured in the same run, each job a separate process with a fresh
 -- knowledge base. Reports the CPU time of the process (user + system, from
 -- the shell's `times`: meaningful on a loaded machine where wall time is
--- not), CPU per unique voxel-layer, peak RSS and the continuous/constant
+-- not), CPU per unique voxel-layer, peak RSS, the most templates held at
+-- once (streamed row by row of voxels) and the continuous/constant
 -- CPU ratio. `-D sizes=3,4,6` adds the issue's 6 x 6 x 6 (about a minute
 -- of CPU); `-D extra='-D kb_store=all'` passes options to every job.
 local sizes_s = gradus.param("sizes", "3,4", { help = "cube sizes n (cells per side), comma-separated" })
@@ -36,7 +37,7 @@ local function run(name, n, thickness)
 end
 
 print(("continuous grading, P sheet, cell 2 mm, layer 0.04, exact mode, res 40, T = %s %s"):format(CONT, extra))
-print("  size     job         classes  built  stored   CPU s   wall s  ms CPU/unique voxel-layer  peak RSS MB  CPU ratio")
+print("  size     job         classes  built  stored  held   CPU s   wall s  ms CPU/unique voxel-layer  peak RSS MB  CPU ratio")
 for s in sizes_s:gmatch("%d+") do
   local n = tonumber(s)
   local const, ccpu, cwall = run("const" .. n, n, "0.1")
@@ -46,8 +47,9 @@ for s in sizes_s:gmatch("%d+") do
     local per_voxel = st.layers / n -- local layers of one voxel
     local vl = st.templates.unique * per_voxel
     local stored = st.templates.stored and tostring(st.templates.stored) or "-"
-    print(("  %dx%dx%d  %-10s  %7d  %5d  %6s  %6.2f  %7.2f  %24.2f  %11.0f  %s"):format(n, n, n, r[1],
-      st.templates.unique, st.templates.built, stored, r[3], r[4], 1000 * r[3] / vl, st.peak_rss_mb,
+    print(("  %dx%dx%d  %-10s  %7d  %5d  %6s  %4s  %6.2f  %7.2f  %24.2f  %11.0f  %s"):format(n, n, n, r[1],
+      st.templates.unique, st.templates.built, stored, tostring(st.templates.held_max or "-"), r[3], r[4],
+      1000 * r[3] / vl, st.peak_rss_mb,
       r[1] == "continuous" and ("%.1fx"):format(tcpu / ccpu) or ""))
   end
 end

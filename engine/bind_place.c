@@ -350,6 +350,7 @@ static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) 
   set_int(L, "corrupt_rebuilt", st->kb_corrupt);
   set_int(L, "stored", st->kb_stored);
   set_int(L, "not_stored", st->kb_not_stored);
+  set_int(L, "held_max", st->held_max);
   /* share of the unique templates taken from the knowledge base (0 when none
    * was reused), and voxels per template (how much the job repeats itself) */
   set_num(L, "reuse_ratio", st->classes ? (double)st->reused / st->classes : 0);

@@ -102,6 +102,17 @@ static gr_field *voxel_field(gr_job *j, int v, int trimmed, gr_field *like, cons
   return g;
 }
 
+/* Once a template is built, qualified and stored (or read from the knowledge
+ * base), its sections (the section rings in a window wider than the voxel,
+ * the largest part of it) serve nothing more: layer assembly uses the
+ * contours, faces and hatch regions. Dropped to keep streamed bands small. */
+static void drop_sections(gr_tmpl *t) {
+  for (int i = 0; t && i < t->nl; i++) {
+    gr_rings_free(t->l[i].section);
+    t->l[i].section = NULL;
+  }
+}
+
 /* Phase 1, per class: take the template from the knowledge base, or make the
  * class's field and allocate its template. */
 static int prepare_item(void *arg_, int item, gr_err *e) {
@@ -128,6 +139,7 @@ static int prepare_item(void *arg_, int item, gr_err *e) {
     if (r) {
       gr_tmpl *t = gr_tmpl_from_record(&j->o, r, nl);
       gr_template_free(r);
+      drop_sections(t);
       if (t) {
         gr_tmpl_free(cl->t);
         cl->t = t;
@@ -180,7 +192,20 @@ static int field_item(void *arg_, int item, gr_err *e) {
   return GR_OK;
 }
 
-/* Phase 2, per (class, layer chunk). */
+/* 1 if a built template of a class of `count` voxels goes to the knowledge
+ * base under policy kb_store (enum gr_kb_store): all, none, or reused = only
+ * when the class occurs more than once in the part. */
+static int should_store(int kb_store, int count) {
+  return kb_store == GR_KB_STORE_ALL || (kb_store == GR_KB_STORE_REUSED && count > 1);
+}
+
+/* 1 if class cl's template, once built, goes to the knowledge base. */
+static int will_store(const gr_build *a, const gr_vclass *cl) {
+  return a->kb && !cl->trimmed && a->jb < 0 && should_store(a->kb_store, cl->count);
+}
+
+/* Phase 2, per (class, layer chunk); the chunk's sections dropped at once
+ * when no knowledge-base record will need them (drop_sections). */
 static int layers_item(void *arg_, int item, gr_err *e) {
   gr_build *a = arg_;
   gr_job *j = a->j;
@@ -191,7 +216,12 @@ static int layers_item(void *arg_, int item, gr_err *e) {
   gr_grid_origin(&j->grid, cl->rep, in.vo);
   gr_grid_ijk(&j->grid, cl->rep, &i, &jj, &k);
   in.g0 = gr_grid_row_first(&j->grid, k);
-  return gr_tmpl_layers(&in, cl->t, cl->field, a->tab, a->wa[item], a->wb[item], e);
+  int rc = gr_tmpl_layers(&in, cl->t, cl->field, a->tab, a->wa[item], a->wb[item], e);
+  for (int q = a->wa[item]; rc == GR_OK && !will_store(a, cl) && q < a->wb[item]; q++) {
+    gr_rings_free(cl->t->l[q].section);
+    cl->t->l[q].section = NULL;
+  }
+  return rc;
 }
 
 /* Phase 2a, per table layer: the shared closest points. */
@@ -200,13 +230,6 @@ static int table_item(void *arg_, int item, gr_err *e) {
   gr_job *j = a->j;
   (void)j;
   return gr_cptab_layer(a->tab, item, e);
-}
-
-/* 1 if a built template of a class of `count` voxels goes to the knowledge
- * base under policy kb_store (enum gr_kb_store): all, none, or reused = only
- * when the class occurs more than once in the part. */
-static int should_store(int kb_store, int count) {
-  return kb_store == GR_KB_STORE_ALL || (kb_store == GR_KB_STORE_REUSED && count > 1);
 }
 
 static int store_item(void *arg_, int item, gr_err *e) {
@@ -228,7 +251,7 @@ static int store_item(void *arg_, int item, gr_err *e) {
     j->st.unqualified++;
     snprintf(j->st.unqualified_why, sizeof j->st.unqualified_why, "%.16s: %s", cl->key, why);
   }
-  if (a->kb && !cl->trimmed && a->jb < 0 && !should_store(a->kb_store, cl->count)) {
+  if (a->kb && !cl->trimmed && a->jb < 0 && !will_store(a, cl)) {
     pthread_mutex_lock(a->kbmu);
     j->st.kb_not_stored++;
     pthread_mutex_unlock(a->kbmu);
@@ -242,6 +265,7 @@ static int store_item(void *arg_, int item, gr_err *e) {
     gr_template_free(r);
     if (rc) return rc;
   }
+  drop_sections(cl->t);
   return GR_OK;
 }
 
@@ -314,6 +338,33 @@ static gr_cptab *make_table(gr_build *a, int c, gr_field *g, gr_err *e) {
   return t;
 }
 
+/* The cache entry of group key `key`, or NULL. */
+static gr_build_group *cache_find(gr_build *a, const char *key) {
+  for (int i = 0; i < GR_BUILD_CACHE; i++)
+    if (a->cache[i].key[0] && strcmp(a->cache[i].key, key) == 0) return &a->cache[i];
+  return NULL;
+}
+
+/* Keep group key's canonical field g and table t (the cache takes t and a
+ * reference to g) in place of the least recently used entry not used in
+ * this call; 0 when every entry is in use (the caller keeps t). */
+static int cache_put(gr_build *a, const char *key, gr_field *g, gr_cptab *t) {
+  gr_build_group *v = NULL;
+  for (int i = 0; i < GR_BUILD_CACHE; i++) {
+    gr_build_group *c = &a->cache[i];
+    if (c->key[0] && c->used == a->calls) continue;
+    if (!v || !c->key[0] || (v->key[0] && c->used < v->used)) v = c;
+  }
+  if (!v) return 0;
+  gr_cptab_free(v->tab);
+  gr_field_free(v->field);
+  snprintf(v->key, sizeof v->key, "%s", key);
+  v->field = gr_field_ref(g);
+  v->tab = t;
+  v->used = a->calls;
+  return 1;
+}
+
 /* Progress of a part of the work, reported as a share of the whole. */
 typedef struct prog_part { const gr_job_run_opts *r; long base, span, total; } prog_part;
 static void prog_part_fn(void *ud, const char *stage, long d, long n) {
@@ -333,8 +384,11 @@ int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, g
   a->fref = malloc(2 * (n + 1) * sizeof *a->fref);
   a->fkind = malloc(2 * (n + 1) * sizeof *a->fkind);
   a->gfield = calloc(n + 1, sizeof *a->gfield);
+  a->ghit = calloc(n + 1, sizeof *a->ghit);
   char (*keys)[128] = malloc((n + 1) * sizeof *keys);
-  if (!cs || !gid || !a->fc || !a->fref || !a->fkind || !a->gfield || !keys) rc = rc ? rc : gr_fail(e, GR_EMEM, "out of memory");
+  a->calls++;
+  if (!cs || !gid || !a->fc || !a->fref || !a->fkind || !a->gfield || !a->ghit || !keys)
+    rc = rc ? rc : gr_fail(e, GR_EMEM, "out of memory");
   long total = 0, base = 0;
   for (int q = 0; q < n && rc == GR_OK; q++) {
     gid[q] = -1;
@@ -344,6 +398,10 @@ int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, g
     if (!keys[q][0]) continue;
     for (int p = 0; p < q && gid[q] < 0; p++)
       if (gid[p] == p && strcmp(keys[p], keys[q]) == 0) gid[q] = p;
+    if (gid[q] < 0 && (a->ghit[q] = cache_find(a, keys[q]))) {
+      a->ghit[q]->used = a->calls;
+      a->gfield[q] = gr_field_ref(a->ghit[q]->field);
+    }
     if (gid[q] < 0) gid[q] = q;
   }
   /* fields: the groups' canonical fields and unshared classes, then the members */
@@ -351,7 +409,7 @@ int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, g
     int nf = 0;
     for (int q = 0; q < n; q++) {
       if (!j->cls[a->items[q]].need) continue;
-      if (pass == 0 && gid[q] == q) { a->fc[nf] = a->items[q]; a->fref[nf] = q; a->fkind[nf++] = 1; }
+      if (pass == 0 && gid[q] == q && !a->ghit[q]) { a->fc[nf] = a->items[q]; a->fref[nf] = q; a->fkind[nf++] = 1; }
       if ((gid[q] >= 0) != pass) continue;
       a->fc[nf] = a->items[q];
       a->fref[nf] = gid[q];
@@ -366,8 +424,9 @@ int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, g
     else
       for (int p = q; p < n; p++)
         if (gid[p] == q) cs[nc++] = a->items[p];
-    gr_cptab *t = NULL;
-    if (gid[q] >= 0 && !(t = make_table(a, a->items[q], a->gfield[q], e))) { rc = e->code ? e->code : GR_EMEM; break; }
+    gr_cptab *t = a->ghit[q] ? a->ghit[q]->tab : NULL;
+    if (gid[q] >= 0 && !t && !(t = make_table(a, a->items[q], a->gfield[q], e))) { rc = e->code ? e->code : GR_EMEM; break; }
+    if (gid[q] >= 0 && !a->ghit[q] && cache_put(a, keys[q], a->gfield[q], t)) a->ghit[q] = cache_find(a, keys[q]);
     a->tab = t;
     long nl = 0;
     for (int p = 0; p < nc; p++) nl += j->cls[cs[p]].t->nl;
@@ -376,16 +435,18 @@ int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, g
     if ((rc = make_work(a, cs, nc, e)) == GR_OK)
       rc = gr_pool_for(a->nwork, layers_item, a, j->o.threads, prog ? prog_part_fn : NULL, prog ? &pp : NULL, stage, e);
     a->tab = NULL;
-    gr_cptab_free(t);
+    if (!a->ghit[q]) gr_cptab_free(t);
     base += nl;
   }
   free(keys);
   free(gid);
   for (int q = 0; q < n && a->gfield; q++) gr_field_free(a->gfield[q]);
   free(a->gfield);
+  free(a->ghit);
   free(a->fc); free(a->fref); free(a->fkind);
   a->fc = a->fref = a->fkind = NULL;
   a->gfield = NULL;
+  a->ghit = NULL;
   free(cs);
   gr_err e2;
   gr_err_clear(&e2);
@@ -406,4 +467,9 @@ void gr_build_done(gr_build *a) {
   free(a->wa);
   free(a->wb);
   a->wc = a->wa = a->wb = NULL;
+  for (int i = 0; i < GR_BUILD_CACHE; i++) {
+    gr_cptab_free(a->cache[i].tab);
+    gr_field_free(a->cache[i].field);
+    memset(&a->cache[i], 0, sizeof a->cache[i]);
+  }
 }

@@ -17,6 +17,17 @@
 #include <pthread.h>
 #include "job.h"
 
+/* A group's canonical field and closest-point table, kept across calls of
+ * gr_build_classes (the part is built band by band: a group met again in a
+ * later band is not recomputed). Both depend on the group's key only. */
+#define GR_BUILD_CACHE 4
+typedef struct gr_build_group {
+  char key[128];           /* share key, "" = empty entry */
+  gr_field *field;         /* canonical field (a reference) */
+  gr_cptab *tab;           /* its closest points */
+  long used;               /* call number of the last use (least recently used goes) */
+} gr_build_group;
+
 typedef struct gr_build {
   gr_job *j;
   gr_kb *kb;               /* knowledge base or NULL */
@@ -33,12 +44,15 @@ typedef struct gr_build {
   gr_cptab *tab;           /* shared closest points of the classes in work, or NULL */
   int *fc, *fref, *fkind;  /* field items: class, its group (index into items) or -1, kind */
   gr_field **gfield;       /* per group head (index into items): the canonical field */
+  gr_build_group **ghit;   /* per group head: its cache entry when found there, else NULL */
+  gr_build_group cache[GR_BUILD_CACHE];
+  long calls;              /* gr_build_classes calls so far */
 } gr_build;
 
 /* Build (or load) the templates of the classes in a->items; progress via r
  * (may be NULL) under the name `stage`. */
 int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, gr_err *e);
-/* Free the work space. */
+/* Free the work space and the cache. */
 void gr_build_done(gr_build *a);
 
 #endif

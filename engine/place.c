@@ -8,6 +8,9 @@
  *                          placement, joining, boundary contours; lasers.h:
  *                          assignment, time estimates, statistics) -> sink
  *
+ * build and stream alternate band by band (one row of voxels): a template is
+ * built when its first row comes and released after its last (run_templates).
+ *
  * The job's state is job.h; doc/architecture.md draws the map. */
 #include "place.h"
 #include <math.h>
@@ -227,27 +230,68 @@ double gr_job_angle(const gr_job *j, int g) { return gr_layer_angle(&j->o, g); }
 
 int gr_job_classify(gr_job *j, int direct, gr_err *e) { return gr_classify_run(j, direct, e); }
 
-/* Every class used by a row in [ga, gb] once (from the knowledge base when
- * there; a class may recur in rows its representative is not in), then the
- * layers ga..gb. */
+/* Band of row k: the layers [*a, *b] of the row to stream (within [ga, gb];
+ * 0 when none) and the rows [*k0, *k1] whose templates they read: the row
+ * itself, and the rows holding the `below` layers under *a and the `above`
+ * layers over *b when assembly reads layers around (0, 0: none). */
+static int band_rows(const gr_job *j, int k, int ga, int gb, int below, int above, int *a, int *b, int *k0, int *k1) {
+  int g0 = gr_grid_row_first(&j->grid, k), g1 = g0 + gr_grid_row_layers(&j->grid, k) - 1;
+  *a = g0 > ga ? g0 : ga;
+  *b = g1 < gb ? g1 : gb;
+  if (*a > *b) return 0;
+  int la = *a - below < 1 ? 1 : *a - below, lb = *b + above > j->nlayers ? j->nlayers : *b + above;
+  *k0 = gr_grid_layer_row(&j->grid, la);
+  *k1 = gr_grid_layer_row(&j->grid, lb);
+  if (*k0 > k) *k0 = k;
+  if (*k1 < k) *k1 = k;
+  return 1;
+}
+
+/* Templates (from the knowledge base or built), streamed band by band: per
+ * row of voxels (a band one cell high), the classes the row's layers read
+ * (its own, and those of the rows around when assembly reads layers around:
+ * below, above) that have no template yet are loaded or built (on all
+ * cores), the row's layers in [ga, gb] are streamed, and the templates no
+ * later band reads are released. Peak memory thus follows the classes of a
+ * band, not of the part; a class recurring in later rows keeps its template
+ * until its last band, and groups sharing closest points keep them across
+ * rows (build.h). Each template is a function of its key alone: the output
+ * is the one of building them all first. */
 static int run_templates(gr_job *j, gr_build *ba, int ga, int gb, const gr_job_run_opts *r, long *done, long total,
                          gr_err *e) {
-  double t1 = gr_now();
-  int n = 0;
-  for (int c = 0; c < j->ncls; c++) ba->items[c] = 0;
   int below, above; /* regions.h: down-/up-skin read the layers around */
   gr_regions_margin(j, &below, &above);
-  for (int k = 0; k < j->grid.n[2]; k++) {
-    int g0 = gr_grid_row_first(&j->grid, k), g1 = g0 + gr_grid_row_layers(&j->grid, k) - 1;
-    if (g1 < ga - below || g0 > gb + above) continue;
-    for (int q = 0; q < j->rowcount[k]; q++) ba->items[j->vcls[j->roworder[(size_t)k * j->rowlen + q]]] = 1;
+  int nc = j->ncls ? j->ncls : 1, a, b, k0, k1;
+  int *last = malloc(2 * (size_t)nc * sizeof *last), *seen = last + nc;
+  if (!last) return gr_fail(e, GR_EMEM, "out of memory");
+  for (int c = 0; c < j->ncls; c++) last[c] = seen[c] = -1;
+  for (int k = 0; k < j->grid.n[2]; k++)
+    if (band_rows(j, k, ga, gb, below, above, &a, &b, &k0, &k1))
+      for (int kk = k0; kk <= k1; kk++)
+        for (int q = 0; q < j->rowcount[kk]; q++) last[j->vcls[j->roworder[(size_t)kk * j->rowlen + q]]] = k;
+  int rc = GR_OK, held = 0;
+  for (int k = 0; k < j->grid.n[2] && rc == GR_OK; k++) {
+    if (!band_rows(j, k, ga, gb, below, above, &a, &b, &k0, &k1)) continue;
+    int n = 0;
+    for (int kk = k0; kk <= k1; kk++)
+      for (int q = 0; q < j->rowcount[kk]; q++) {
+        int c = j->vcls[j->roworder[(size_t)kk * j->rowlen + q]];
+        if (!j->cls[c].t && seen[c] < 0) { seen[c] = k; ba->items[n++] = c; }
+      }
+    double t1 = gr_now();
+    ba->nitems = n;
+    rc = gr_build_classes(ba, r, "templates", e); /* progress per band */
+    j->st.seconds[1] += gr_now() - t1;
+    held += n;
+    if (held > j->st.held_max) j->st.held_max = held;
+    if (rc == GR_OK) rc = gr_stream_layers(j, a, b, r, done, total, e);
+    for (int kk = k0; kk <= k1; kk++)
+      for (int q = 0; q < j->rowcount[kk]; q++) {
+        int c = j->vcls[j->roworder[(size_t)kk * j->rowlen + q]];
+        if (last[c] == k && j->cls[c].t) { gr_tmpl_free(j->cls[c].t); j->cls[c].t = NULL; held--; }
+      }
   }
-  for (int c = 0; c < j->ncls; c++)
-    if (ba->items[c]) ba->items[n++] = c;
-  ba->nitems = n;
-  int rc = gr_build_classes(ba, r, "templates", e);
-  j->st.seconds[1] = gr_now() - t1;
-  if (rc == GR_OK) rc = gr_stream_layers(j, ga, gb, r, done, total, e);
+  free(last);
   return rc;
 }
 
@@ -266,6 +310,7 @@ static int run_direct(gr_job *j, gr_build *ba, int ga, int gb, const gr_job_run_
     ba->jb = b - g0 + 1;
     double tb = gr_now();
     ba->nitems = n;
+    if (n > j->st.held_max) j->st.held_max = n;
     rc = gr_build_classes(ba, NULL, "voxels", e);
     j->st.seconds[1] += gr_now() - tb;
     if (rc == GR_OK) rc = gr_stream_layers(j, a, b, r, done, total, e);

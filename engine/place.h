@@ -43,6 +43,7 @@ typedef struct gr_job_stats {
   int kb_corrupt;              /* knowledge-base records found corrupt (rebuilt) */
   int kb_stored;               /* templates written to the knowledge base */
   int kb_not_stored;           /* built but not written (kb_store policy) */
+  int held_max;                /* most templates held in memory at once (streaming) */
   size_t vectors[GR_NKINDS];   /* scan vectors per kind */
   double length[GR_NKINDS];    /* scan length per kind, mm */
   size_t jumps;                /* jumps (all lasers) */

@@ -169,13 +169,53 @@ static int cmp_double(const void *a, const void *b) {
   return x < y ? -1 : x > y;
 }
 
+/* The grid rows j (y = y0 + j hy) an edge with ends at heights ya, yb may
+ * cross, [*j0, *j1] (a superset, clamped to the grid; empty when j0 > j1). */
+static void pd_edge_rows(const gr_ms_grid *g, double ya, double yb, int *j0, int *j1) {
+  double lo = (fmin(ya, yb) - g->y0) / g->hy, hi = (fmax(ya, yb) - g->y0) / g->hy;
+  *j0 = !(lo > 0) ? 0 : lo > g->ny ? g->ny : (int)floor(lo);
+  *j1 = !(hi < g->ny - 1) ? g->ny - 1 : hi < 0 ? -1 : (int)ceil(hi);
+}
+
+/* Crossings of the grid's rows with the edges, per row (CSR: row j's x in
+ * xs[rs[j]..rs[j+1])), each edge visiting only the rows in its height range;
+ * the test per row is the even-odd rule's. NULL (with e) when out of memory. */
+static double *pd_row_crossings(const poly_dist *d, const gr_ms_grid *g, size_t *rs, gr_err *e) {
+  memset(rs, 0, ((size_t)g->ny + 1) * sizeof *rs);
+  double *xs = NULL;
+  for (int pass = 0; pass < 2; pass++) {
+    for (size_t ed = 0; ed < d->ne; ed++) {
+      const double *a = d->ab + 4 * ed;
+      int j0, j1;
+      pd_edge_rows(g, a[1], a[3], &j0, &j1);
+      for (int j = j0; j <= j1; j++) {
+        double y = g->y0 + j * g->hy;
+        if ((a[1] > y) == (a[3] > y)) continue;
+        if (pass == 0) rs[j + 1]++;
+        else xs[rs[j]++] = a[0] + (y - a[1]) * (a[2] - a[0]) / (a[3] - a[1]);
+      }
+    }
+    if (pass == 0) {
+      for (int j = 0; j < g->ny; j++) rs[j + 1] += rs[j];
+      xs = malloc((rs[g->ny] + 1) * sizeof *xs);
+      if (!xs) return gr_fail(e, GR_EMEM, "out of memory: %zu row crossings", rs[g->ny]), NULL;
+    } else {
+      for (int j = g->ny; j > 0; j--) rs[j] = rs[j - 1];
+      rs[0] = 0;
+    }
+  }
+  return xs;
+}
+
 /* Sample sd + b on the grid g (v allocated by the caller): the sign by the
  * even-odd rule along each row (exact), the distance from the buckets
  * within rmax (clamped to rmax farther away). */
 static int pd_sample(const poly_dist *d, const gr_ms_grid *g, double *v,
                      double rmax, gr_err *e) {
-  double *xs = malloc((d->ne + 1) * sizeof *xs);
-  if (!xs) return gr_fail(e, GR_EMEM, "out of memory: %zu edges", d->ne);
+  size_t *rs = malloc(((size_t)g->ny + 1) * sizeof *rs);
+  if (!rs) return gr_fail(e, GR_EMEM, "out of memory: %d rows", g->ny);
+  double *xs = pd_row_crossings(d, g, rs, e);
+  if (!xs) { free(rs); return e->code; }
   /* squared distances: each edge updates the nodes within rmax of it */
   size_t nn = (size_t)g->nx * g->ny;
   for (size_t k = 0; k < nn; k++) v[k] = INFINITY;
@@ -202,17 +242,13 @@ static int pd_sample(const poly_dist *d, const gr_ms_grid *g, double *v,
   }
   /* signs by scan-line parity */
   for (int j = 0; j < g->ny; j++) {
-    double y = g->y0 + j * g->hy;
-    size_t nc = 0;
-    for (size_t ed = 0; ed < d->ne; ed++) {
-      const double *a = d->ab + 4 * ed;
-      if ((a[1] > y) != (a[3] > y)) xs[nc++] = a[0] + (y - a[1]) * (a[2] - a[0]) / (a[3] - a[1]);
-    }
-    qsort(xs, nc, sizeof *xs, cmp_double);
+    double *row = xs + rs[j];
+    size_t nc = rs[j + 1] - rs[j];
+    qsort(row, nc, sizeof *row, cmp_double);
     size_t c = 0;
     for (int i = 0; i < g->nx; i++) {
       double x = g->x0 + i * g->hx;
-      while (c < nc && xs[c] <= x) c++;
+      while (c < nc && row[c] <= x) c++;
       int in = c & 1;
       double *vv = v + i + (size_t)g->nx * j;
       double dist = *vv <= rmax * rmax ? sqrt(*vv) : rmax;
@@ -220,6 +256,7 @@ static int pd_sample(const poly_dist *d, const gr_ms_grid *g, double *v,
     }
   }
   free(xs);
+  free(rs);
   return GR_OK;
 }
 
