@@ -14,13 +14,16 @@
  * exact matching of end points. */
 #include "facestep.h"
 #include <math.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include "clip.h"
 
 /* Piece end points within this of a box side lie on it (mm). */
 #define ON_SIDE 1e-9
+/* Sections whose crossings of a shared face agree within this (mm) are
+ * taken to agree near it: the grading is continuous there, and the
+ * template's continuation of the voxel's own grading stands. */
+#define FACE_TOL 2e-4
 /* The window's border is drawn this far inside the templates' (mm). */
 #define INSET 1e-6
 /* Chain end points this close are the same point (mm). */
@@ -231,6 +234,56 @@ static const gr_tlayer *voxel_layer(const gr_job *j, int v, int jl) {
   return &t->l[jl - t->j0];
 }
 
+/* Whether classes a and b may give different sections: different
+ * signatures once the voxel number that direct mode adds is set aside
+ * (trimmed classes always differ: the domain cuts them). */
+static int classes_differ(const gr_job *j, int a, int b) {
+  if (a == b) return 0;
+  const gr_vclass *ca = &j->cls[a], *cb = &j->cls[b];
+  if (ca->trimmed || cb->trimmed) return 1;
+  const char *pa = strstr(ca->sig, ", voxel: "), *pb = strstr(cb->sig, ", voxel: ");
+  size_t na = pa ? (size_t)(pa - ca->sig) : strlen(ca->sig), nb = pb ? (size_t)(pb - cb->sig) : strlen(cb->sig);
+  return na != nb || memcmp(ca->sig, cb->sig, na) != 0;
+}
+
+/* Where ring set r crosses the line x = pos (vert) or y = pos, along it,
+ * within [0, L]: sorted into *c (grown), count returned; -1 out of memory. */
+static long face_crossings(const gr_rings *r, int vert, double pos, double L, double **c, size_t *cap) {
+  long n = 0;
+  for (size_t i = 0; i < r->nrings; i++) {
+    const double *p = gr_ring_xy(r, i);
+    size_t m = gr_ring_len(r, i);
+    for (size_t a = 0; a < m; a++) {
+      const double *P = p + 2 * a, *Q = p + 2 * ((a + 1) % m);
+      double pa = vert ? P[0] : P[1], qa = vert ? Q[0] : Q[1];
+      if ((pa > pos) == (qa > pos)) continue;
+      double pl = vert ? P[1] : P[0], ql = vert ? Q[1] : Q[0], t = pl + (pos - pa) * (ql - pl) / (qa - pa);
+      if (t < 0 || t > L) continue;
+      if (gr_grow(c, cap, (size_t)n + 1, sizeof **c)) return -1;
+      (*c)[n++] = t;
+    }
+  }
+  qsort(*c, (size_t)n, sizeof **c, dbl_cmp);
+  return n;
+}
+
+/* 1 if the sections a (the voxel's) and b (its side neighbour's, in its own
+ * coordinates) cross their shared face at different places (beyond FACE_TOL),
+ * 0 if not, -1 out of memory. side: 0 x = 0, 1 x = L, 2 y = 0, 3 y = L. */
+static int face_differs(const gr_rings *a, const gr_rings *b, int side, double L) {
+  int vert = side < 2;
+  double pa = (side & 1) ? L : 0, pb = (side & 1) ? 0 : L;
+  double *ca = NULL, *cb = NULL;
+  size_t capa = 0, capb = 0;
+  long na = face_crossings(a, vert, pa, L, &ca, &capa), nb = face_crossings(b, vert, pb, L, &cb, &capb);
+  int r = na < 0 || nb < 0 ? -1 : na != nb;
+  for (long k = 0; r == 0 && k < na; k++)
+    if (fabs(ca[k] - cb[k]) > FACE_TOL) r = 1;
+  free(ca);
+  free(cb);
+  return r;
+}
+
 int gr_fstep_voxel(const gr_job *j, int v, int jl, gr_tlayer *out, int *done, gr_err *e) {
   *done = 0;
   int i, jj, k, nx = j->o.n[0], ny = j->o.n[1];
@@ -245,13 +298,17 @@ int gr_fstep_voxel(const gr_job *j, int v, int jl, gr_tlayer *out, int *done, gr
       if (i + di >= 0 && i + di < nx && jj + dj >= 0 && jj + dj < ny)
         tl = voxel_layer(j, v + di + dj * nx, jl);
       nb[3 * (dj + 1) + di + 1] = tl ? tl->section : NULL;
-      if (tl && j->cls[j->vcls[v + di + dj * nx]].t != j->cls[j->vcls[v]].t) differ = 1;
+      if (tl && (di == 0) != (dj == 0) && classes_differ(j, j->vcls[v + di + dj * nx], j->vcls[v])) {
+        int side = di < 0 ? 0 : di > 0 ? 1 : dj < 0 ? 2 : 3;
+        int r = face_differs(own->section, tl->section, side, j->o.cell);
+        if (r < 0) return gr_fail(e, GR_EMEM, "out of memory");
+        differ |= r;
+      }
     }
   if (!differ) return GR_OK;
   if (!out->section && !(out->section = gr_rings_new())) return gr_fail(e, GR_EMEM, "out of memory");
   int rc = gr_fstep_section(j->o.cell, gr_tmpl_window(&j->o), nb, out->section, e);
   if (rc == GR_EARG) { /* degenerate: keep the template's layer */
-    if (getenv("FSDEBUG")) fprintf(stderr, "fstep fallback v=%d jl=%d: %s\n", v, jl, e->msg);
     gr_err_clear(e);
     return GR_OK;
   }
