@@ -17,12 +17,14 @@
 #include <stdlib.h>
 #include <string.h>
 #include "clip.h"
+#include "hatch.h"
 
 /* Piece end points within this of a box side lie on it (mm). */
 #define ON_SIDE 1e-9
-/* Sections whose crossings of a shared face agree within this (mm) are
- * taken to agree near it: the grading is continuous there, and the
- * template's continuation of the voxel's own grading stands. */
+/* A voxel's section continued past a side and its neighbour's own section
+ * whose crossings of the face and of lines parallel to it agree within this
+ * (mm) are taken to agree there: the template's continuation of the voxel's
+ * own grading stands. */
 #define FACE_TOL 2e-4
 /* The window's border is drawn this far inside the templates' (mm). */
 #define INSET 1e-6
@@ -234,18 +236,6 @@ static const gr_tlayer *voxel_layer(const gr_job *j, int v, int jl) {
   return &t->l[jl - t->j0];
 }
 
-/* Whether classes a and b may give different sections: different
- * signatures once the voxel number that direct mode adds is set aside
- * (trimmed classes always differ: the domain cuts them). */
-static int classes_differ(const gr_job *j, int a, int b) {
-  if (a == b) return 0;
-  const gr_vclass *ca = &j->cls[a], *cb = &j->cls[b];
-  if (ca->trimmed || cb->trimmed) return 1;
-  const char *pa = strstr(ca->sig, ", voxel: "), *pb = strstr(cb->sig, ", voxel: ");
-  size_t na = pa ? (size_t)(pa - ca->sig) : strlen(ca->sig), nb = pb ? (size_t)(pb - cb->sig) : strlen(cb->sig);
-  return na != nb || memcmp(ca->sig, cb->sig, na) != 0;
-}
-
 /* Where ring set r crosses the line x = pos (vert) or y = pos, along it,
  * within [0, L]: sorted into *c (grown), count returned; -1 out of memory. */
 static long face_crossings(const gr_rings *r, int vert, double pos, double L, double **c, size_t *cap) {
@@ -267,18 +257,23 @@ static long face_crossings(const gr_rings *r, int vert, double pos, double L, do
   return n;
 }
 
-/* 1 if the sections a (the voxel's) and b (its side neighbour's, in its own
- * coordinates) cross their shared face at different places (beyond FACE_TOL),
- * 0 if not, -1 out of memory. side: 0 x = 0, 1 x = L, 2 y = 0, 3 y = L. */
-static int face_differs(const gr_rings *a, const gr_rings *b, int side, double L) {
-  int vert = side < 2;
-  double pa = (side & 1) ? L : 0, pb = (side & 1) ? 0 : L;
+/* 1 if the section a (the voxel's, continued past its side with its own
+ * grading) and b (the side neighbour's own, in its own coordinates) cross
+ * the shared face, or the lines s = h/3, 2h/3 and h into the neighbour, at
+ * different places (beyond FACE_TOL); 0 if not, -1 out of memory. side: 0
+ * x = 0, 1 x = L, 2 y = 0, 3 y = L; h: the hatch offset (the farthest the
+ * voxel's contours and hatch region look across the face). */
+static int face_differs(const gr_rings *a, const gr_rings *b, int side, double L, double h) {
+  int vert = side < 2, r = 0;
   double *ca = NULL, *cb = NULL;
   size_t capa = 0, capb = 0;
-  long na = face_crossings(a, vert, pa, L, &ca, &capa), nb = face_crossings(b, vert, pb, L, &cb, &capb);
-  int r = na < 0 || nb < 0 ? -1 : na != nb;
-  for (long k = 0; r == 0 && k < na; k++)
-    if (fabs(ca[k] - cb[k]) > FACE_TOL) r = 1;
+  for (int q = 0; q < 4 && r == 0; q++) {
+    double s = q * h / 3, pa = (side & 1) ? L + s : -s, pb = (side & 1) ? s : L - s;
+    long na = face_crossings(a, vert, pa, L, &ca, &capa), nb = face_crossings(b, vert, pb, L, &cb, &capb);
+    r = na < 0 || nb < 0 ? -1 : na != nb;
+    for (long k = 0; r == 0 && k < na; k++)
+      if (fabs(ca[k] - cb[k]) > FACE_TOL) r = 1;
+  }
   free(ca);
   free(cb);
   return r;
@@ -291,16 +286,17 @@ int gr_fstep_voxel(const gr_job *j, int v, int jl, gr_tlayer *out, int *done, gr
   const gr_tlayer *own = voxel_layer(j, v, jl);
   if (!own) return GR_OK;
   const gr_rings *nb[9];
-  int differ = 0;
+  int differ = 0, nc = j->o.contours;
+  double h = j->o.beam_offset + (nc > 1 ? nc - 1 : 0) * j->o.hatch + gr_hatch_defaults().gap;
   for (int dj = -1; dj <= 1; dj++)
     for (int di = -1; di <= 1; di++) {
       const gr_tlayer *tl = NULL;
       if (i + di >= 0 && i + di < nx && jj + dj >= 0 && jj + dj < ny)
         tl = voxel_layer(j, v + di + dj * nx, jl);
       nb[3 * (dj + 1) + di + 1] = tl ? tl->section : NULL;
-      if (tl && (di == 0) != (dj == 0) && classes_differ(j, j->vcls[v + di + dj * nx], j->vcls[v])) {
+      if (tl && (di == 0) != (dj == 0) && !differ) {
         int side = di < 0 ? 0 : di > 0 ? 1 : dj < 0 ? 2 : 3;
-        int r = face_differs(own->section, tl->section, side, j->o.cell);
+        int r = face_differs(own->section, tl->section, side, j->o.cell, h);
         if (r < 0) return gr_fail(e, GR_EMEM, "out of memory");
         differ |= r;
       }

@@ -28,14 +28,15 @@
  * when the pieces do not close into rings (degenerate input: a section edge
  * lying along a face); out is then empty and the caller keeps the template. */
 int gr_fstep_section(double L, double m, const gr_rings *const nb[9], gr_rings *out, gr_err *e);
-/* Voxel v of job j on its row's local layer jl: when a side neighbour is
- * graded otherwise (another class signature, the voxel number of direct mode
- * aside; or a trimmed class) and their sections cross the shared face at
- * different places (a step: beyond 0.2 um), its layer recomputed on the
- * window's true section (gr_tmpl_paths) into out (a zeroed gr_tlayer; free
- * it with gr_fstep_free) and *done = 1; *done = 0 when not needed or
- * degenerate (keep the template's layer). GR_OK or GR_EMEM (e filled).
- * Thread-safe for distinct out. */
+/* Voxel v of job j on its row's local layer jl: when its template's section,
+ * continued past a side with the voxel's own grading, differs from the side
+ * neighbour's own section within the hatch offset of their face (crossings of
+ * the face and of three lines parallel to it more than 0.2 um apart: a step,
+ * or a grading that changes across the face, such as a sine in u), its layer
+ * is recomputed on the window's true section (gr_tmpl_paths) into out (a
+ * zeroed gr_tlayer; free it with gr_fstep_free) and *done = 1; *done = 0 when
+ * not needed or degenerate (keep the template's layer). GR_OK or GR_EMEM (e
+ * filled). Thread-safe for distinct out. */
 int gr_fstep_voxel(const gr_job *j, int v, int jl, gr_tlayer *out, int *done, gr_err *e);
 void gr_fstep_free(gr_tlayer *tl); /* frees the members, zeroes tl */
 
