@@ -296,7 +296,9 @@ int gr_fstep_voxel(const gr_job *j, int v, int jl, gr_tlayer *out, int *done, gr
       nb[3 * (dj + 1) + di + 1] = tl ? tl->section : NULL;
       if (tl && (di == 0) != (dj == 0) && !differ) {
         int side = di < 0 ? 0 : di > 0 ? 1 : dj < 0 ? 2 : 3;
+        /* both ways: the two voxels must agree on whether the face steps */
         int r = face_differs(own->section, tl->section, side, j->o.cell, h);
+        if (r == 0) r = face_differs(tl->section, own->section, side ^ 1, j->o.cell, h);
         if (r < 0) return gr_fail(e, GR_EMEM, "out of memory");
         differ |= r;
       }
