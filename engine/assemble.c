@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "clip.h"
+#include "facestep.h"
 #include "hatch.h"
 #include "lasers.h"
 #include "regions.h"
@@ -349,13 +350,21 @@ static int gather_voxels(gr_job *j, int g, gr_asm_scratch *s, gr_layer *out, gr_
       break;
     }
     const gr_tlayer *tl = &t->l[jl - t->j0];
+    gr_tlayer st; /* the layer on the true section where a neighbour is graded otherwise */
+    memset(&st, 0, sizeof st);
+    int stepped = 0;
+    if ((rc = gr_fstep_voxel(j, v, jl, &st, &stepped, e))) { gr_fstep_free(&st); break; }
+    if (stepped) tl = &st;
     double o[3];
     gr_grid_origin(&j->grid, v, o);
     out->area += tl->area;
     size_t nb0 = s->cont->nb;
     int mask = voxel_sides(j, v);
-    if (mask && boundary_contours(j, s, tl, mask)) { rc = gr_fail(e, GR_EMEM, "out of memory"); break; }
-    if (gr_layer_append(s->cont, mask ? s->fl : tl->paths, o[0], o[1])) { rc = gr_fail(e, GR_EMEM, "out of memory"); break; }
+    if ((mask && boundary_contours(j, s, tl, mask)) || gr_layer_append(s->cont, mask ? s->fl : tl->paths, o[0], o[1])) {
+      gr_fstep_free(&st);
+      rc = gr_fail(e, GR_EMEM, "out of memory");
+      break;
+    }
     for (size_t b = nb0; b < s->cont->nb; b++) {
       s->cont->b[b].laser = q; /* slot, mapped to the laser later */
       lc[q] += gr_block_length(s->cont, &s->cont->b[b]);
@@ -366,6 +375,7 @@ static int gather_voxels(gr_job *j, int g, gr_asm_scratch *s, gr_layer *out, gr_
     if (j->o.pattern == GR_PATTERN_ISLAND && ((i + jj) & 1)) av = fmod(a + 90, 360);
     rc = hatch_voxel(j, s, tl, o, av, q, mask, e);
     if (rc == GR_OK) rc = gr_regions_split(j, g, v, &s->segs, &s->nseg, &s->capseg, s->vseg0[q], e);
+    gr_fstep_free(&st);
     s->vcont1[q] = s->cont->nb;
     s->vseg1[q] = s->nseg;
     for (size_t r = s->vseg0[q]; r < s->nseg; r++) lh[q] += s->segs[r].s1 - s->segs[r].s0;

@@ -41,6 +41,12 @@ static int offset_fine(const gr_rings *in, double b, double cell, gr_rings *out,
   return gr_offset_rings_opt(in, b, cell, 1e-6, 0, out, e);
 }
 
+/* The same with chords refined: a section with corners (a step at a face)
+ * has offsets with arcs of radius b, too tight for chords of a grid cell. */
+static int offset_sharp(const gr_rings *in, double b, double cell, gr_rings *out, gr_err *e) {
+  return gr_offset_rings_opt(in, b, cell, 1e-6, CHORD_TOL, out, e);
+}
+
 
 /* ---- voxels on the part's boundary ----
  * The part's section in a boundary voxel is the lattice section A cut by the
@@ -187,6 +193,54 @@ double gr_tmpl_window(const gr_job_opts *o) {
   return ceil((o->beam_offset + (o->contours + 1) * o->hatch + 2 * h) / h) * h;
 }
 
+/* Contour, thin-wall and hatch-region options of the templates. */
+static gr_hatch_opts tmpl_hatch_opts(const gr_job_opts *opt, int sharp) {
+  double L = opt->cell;
+  gr_hatch_opts ho = gr_hatch_defaults();
+  ho.spacing = opt->hatch;
+  ho.beam_offset = opt->beam_offset;
+  ho.contours = opt->contours;
+  ho.cell = opt->slice_cell;
+  ho.pattern = GR_PARALLEL;
+  ho.offset = sharp ? offset_sharp : offset_fine;
+  /* the window's cut edges are not walls: thin walls only where they reach the voxel */
+  ho.thin_box[0] = ho.thin_box[1] = -opt->beam_offset;
+  ho.thin_box[2] = ho.thin_box[3] = L + opt->beam_offset;
+  return ho;
+}
+
+int gr_tmpl_paths(const gr_job_opts *opt, gr_tlayer *tl, int sharp, gr_err *e) {
+  double box_lo[2] = {0, 0}, box_hi[2] = {opt->cell, opt->cell};
+  gr_hatch_opts ho = tmpl_hatch_opts(opt, sharp);
+  if (!tl->region && !(tl->region = gr_rings_new())) return gr_fail(e, GR_EMEM, "out of memory");
+  if (!tl->paths && !(tl->paths = gr_layer_new(0))) return gr_fail(e, GR_EMEM, "out of memory");
+  gr_rings_clear(tl->region);
+  gr_layer_clear(tl->paths, 0);
+  gr_layer *tmp = gr_layer_new(0);
+  double *buf = NULL;
+  size_t cap = 0;
+  if (!tmp) return gr_fail(e, GR_EMEM, "out of memory");
+  gr_hatch_report rep;
+  memset(&rep, 0, sizeof rep);
+  /* contours, thin walls and the hatch region from one set of offsets */
+  int rc = gr_hatch_contours(tl->section, &ho, tmp, tl->region, &rep, e);
+  /* contours and thin-wall scans of the window, clipped to the voxel */
+  for (size_t b = 0; rc == GR_OK && b < tmp->nb; b++) {
+    const gr_block *bk = &tmp->b[b];
+    if (bk->kind == GR_HATCH) continue;
+    if (gr_clip_poly(tmp->xy + 2 * bk->start, bk->n, bk->shape == GR_CLOSED, bk->kind, bk->dir, box_lo, box_hi,
+                     tl->paths, &buf, &cap))
+      rc = gr_fail(e, GR_EMEM, "out of memory");
+  }
+  tl->paths->thin_walls = rep.thin_walls;
+  /* hatch ends need no sub-micrometre region: fewer edges to scan per instance */
+  if (rc == GR_OK && gr_rings_simplify(tl->region, REGION_TOL)) rc = gr_fail(e, GR_EMEM, "out of memory");
+  if (rc == GR_OK && face_lines(opt, tl)) rc = gr_fail(e, GR_EMEM, "out of memory");
+  free(buf);
+  gr_layer_free(tmp);
+  return rc;
+}
+
 /* Compute template layers [qa, qb) from the voxel's field f, through the
  * shared closest points tab if not NULL (template.h). */
 int gr_tmpl_layers(const gr_tmpl_in *in, gr_tmpl *t, const gr_field *f, const gr_cptab *tab, int qa, int qb,
@@ -205,20 +259,7 @@ int gr_tmpl_layers(const gr_tmpl_in *in, gr_tmpl *t, const gr_field *f, const gr
   so.refine = 1;
   so.chord_tol = CHORD_TOL;
   double box_lo[2] = {0, 0}, box_hi[2] = {L, L};
-  gr_hatch_opts ho = gr_hatch_defaults();
-  ho.spacing = opt->hatch;
-  ho.beam_offset = opt->beam_offset;
-  ho.contours = opt->contours;
-  ho.cell = h;
-  ho.pattern = GR_PARALLEL;
-  ho.offset = offset_fine;
-  /* the window's cut edges are not walls: thin walls only where they reach the voxel */
-  ho.thin_box[0] = ho.thin_box[1] = -opt->beam_offset;
-  ho.thin_box[2] = ho.thin_box[3] = L + opt->beam_offset;
-  gr_layer *tmp = gr_layer_new(0);
-  double *buf = NULL;
-  size_t cap = 0;
-  int rc = tmp ? GR_OK : gr_fail(e, GR_EMEM, "out of memory");
+  int rc = GR_OK;
   for (int q = qa; q < qb && rc == GR_OK; q++) {
     gr_tlayer *tl = &t->l[q];
     tl->section = gr_rings_new();
@@ -229,28 +270,10 @@ int gr_tmpl_layers(const gr_tmpl_in *in, gr_tmpl *t, const gr_field *f, const gr
     if ((rc = tab ? gr_cptab_slice(tab, f, o, q, z, &so, tl->section, e) : gr_slice_field(f, z, &so, tl->section, e))) break;
     gr_rings_translate(tl->section, -o[0], -o[1]);
     tl->area = gr_clip_area(tl->section, box_lo, box_hi);
-    /* contours and thin-wall scans of the window, clipped to the voxel */
-    gr_layer_clear(tmp, 0);
-    gr_hatch_report rep;
-    memset(&rep, 0, sizeof rep);
-    /* contours, thin walls and the hatch region from one set of offsets */
-    if ((rc = gr_hatch_contours(tl->section, &ho, tmp, tl->region, &rep, e))) break;
-    for (size_t b = 0; b < tmp->nb && rc == GR_OK; b++) {
-      const gr_block *bk = &tmp->b[b];
-      if (bk->kind == GR_HATCH) continue;
-      if (gr_clip_poly(tmp->xy + 2 * bk->start, bk->n, bk->shape == GR_CLOSED, bk->kind, bk->dir, box_lo, box_hi,
-                    tl->paths, &buf, &cap))
-        rc = gr_fail(e, GR_EMEM, "out of memory");
-    }
-    tl->paths->thin_walls = rep.thin_walls;
-    /* hatch ends need no sub-micrometre region: fewer edges to scan per instance */
-    if (rc == GR_OK && gr_rings_simplify(tl->region, REGION_TOL)) rc = gr_fail(e, GR_EMEM, "out of memory");
-    if (rc == GR_OK && face_lines(opt, tl)) rc = gr_fail(e, GR_EMEM, "out of memory");
+    if ((rc = gr_tmpl_paths(opt, tl, 0, e))) break;
     tl->q[0] = tl->q[1] = tl->q[2] = NAN;
     if (rc == GR_OK && opt->verify) rc = verify_template_layer(opt, tl, gr_layer_angle(opt, g0 + t->j0 + q), e);
   }
-  free(buf);
-  gr_layer_free(tmp);
   return rc;
 }
 

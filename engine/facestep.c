@@ -1,0 +1,327 @@
+/* facestep.c: the voxel-owned section of a window across voxel faces, see
+ * facestep.h.
+ *
+ * The window is tiled by nine boxes (the centre voxel, its four side and four
+ * corner neighbours, each cut to the window). The section's boundary is
+ *  - each box's section boundary inside the box (its rings clipped to it), and
+ *  - on the lines that carry the boxes' sides, the parts where the solid is
+ *    on one side only: every box contributes its sides' solid intervals,
+ *    oriented counter-clockwise around the box; on a face shared by two boxes
+ *    the two directions cancel where both are solid, so what is left is the
+ *    step (and on the window's border, its closure).
+ * The pieces end exactly on the lines (snapped), the line intervals start
+ * and end at those very coordinates, so they chain into closed rings by
+ * exact matching of end points. */
+#include "facestep.h"
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include "clip.h"
+#include "hatch.h"
+
+/* Piece end points within this of a box side lie on it (mm). */
+#define ON_SIDE 1e-9
+/* A voxel's section continued past a side and its neighbour's own section
+ * whose crossings of the face and of lines parallel to it agree within this
+ * (mm) are taken to agree there: the template's continuation of the voxel's
+ * own grading stands. */
+#define FACE_TOL 2e-4
+/* The window's border is drawn this far inside the templates' (mm). */
+#define INSET 1e-6
+/* Chain end points this close are the same point (mm). */
+#define JOIN 1e-9
+
+typedef struct fs_iv {
+  int line;    /* 0..3: x = X[line]; 4..7: y = X[line - 4] */
+  double a, b; /* a < b, along the line */
+  int sgn;     /* +1: runs from a to b, -1: from b to a */
+} fs_iv;
+
+typedef struct fs_work {
+  double X[4];       /* -m, 0, L, L + m (the outer two INSET inside) */
+  gr_rings *tr;      /* one box's rings, translated */
+  gr_layer *pc;      /* one box's clipped pieces */
+  gr_layer *ed;      /* the boundary's edges (open polylines) */
+  fs_iv *iv;
+  size_t niv, capiv;
+  double *bp;        /* breakpoints, scratch */
+  size_t capbp;
+  double *buf;       /* clip scratch */
+  size_t capbuf;
+} fs_work;
+
+static int dbl_cmp(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+static int push_iv(fs_work *w, int line, double a, double b, int sgn) {
+  if (gr_grow(&w->iv, &w->capiv, w->niv + 1, sizeof *w->iv)) return GR_EMEM;
+  w->iv[w->niv++] = (fs_iv){line, a, b, sgn};
+  return GR_OK;
+}
+
+/* Side s (0 bottom, 1 right, 2 top, 3 left: counter-clockwise) of the box
+ * lo..hi: its line, fixed coordinate, along-axis range and direction. */
+static void box_side(const fs_work *w, int bi, int bj, int s, int *line, double *fix, double *a, double *b,
+                     int *sgn) {
+  int vert = s & 1, hiside = s == 1 || s == 2;
+  int k = vert ? bi + hiside : bj + hiside;  /* index into X */
+  *line = vert ? k : 4 + k;
+  *fix = w->X[k];
+  *a = vert ? w->X[bj] : w->X[bi];
+  *b = vert ? w->X[bj + 1] : w->X[bi + 1];
+  *sgn = s < 2 ? 1 : -1;
+}
+
+/* Snap the end points of box (bi, bj)'s open pieces onto the sides they lie
+ * on, then add each side's solid intervals (split at those end points). */
+static int box_sides(fs_work *w, int bi, int bj) {
+  for (int s = 0; s < 4; s++) {
+    int line, sgn, vert = s & 1;
+    double fix, a, b;
+    box_side(w, bi, bj, s, &line, &fix, &a, &b, &sgn);
+    size_t nb = 0;
+    if (gr_grow(&w->bp, &w->capbp, 2 * w->pc->nb + 2, sizeof *w->bp)) return GR_EMEM;
+    w->bp[nb++] = a;
+    w->bp[nb++] = b;
+    for (size_t k = 0; k < w->pc->nb; k++) {
+      const gr_block *bk = &w->pc->b[k];
+      if (bk->shape != GR_OPEN) continue;
+      for (int end = 0; end < 2; end++) {
+        double *p = w->pc->xy + 2 * (bk->start + (end ? bk->n - 1 : 0));
+        if (fabs(p[vert ? 0 : 1] - fix) > ON_SIDE) continue;
+        p[vert ? 0 : 1] = fix;
+        double t = p[vert ? 1 : 0];
+        if (t > a && t < b) w->bp[nb++] = t;
+      }
+    }
+    qsort(w->bp, nb, sizeof *w->bp, dbl_cmp);
+    for (size_t k = 0; k + 1 < nb; k++) {
+      double p = w->bp[k], q = w->bp[k + 1], mid = 0.5 * (p + q);
+      if (!(q > p)) continue;
+      int in = vert ? gr_rings_contains(w->tr, fix, mid) : gr_rings_contains(w->tr, mid, fix);
+      if (in && push_iv(w, line, p, q, sgn)) return GR_EMEM;
+    }
+  }
+  return GR_OK;
+}
+
+/* Box (bi, bj) of the window (0..2 each) with rings r in its own voxel's
+ * coordinates, moved by (dx, dy): closed rings inside it go to out, open
+ * pieces to w->ed, side intervals to w->iv. */
+static int add_box(fs_work *w, int bi, int bj, const gr_rings *r, double dx, double dy, gr_rings *out) {
+  double lo[2] = {w->X[bi], w->X[bj]}, hi[2] = {w->X[bi + 1], w->X[bj + 1]};
+  gr_rings_clear(w->tr);
+  gr_layer_clear(w->pc, 0);
+  if (gr_rings_append(w->tr, r, dx, dy)) return GR_EMEM;
+  for (size_t i = 0; i < w->tr->nrings; i++)
+    if (gr_clip_poly(gr_ring_xy(w->tr, i), gr_ring_len(w->tr, i), 1, GR_CONTOUR, 1, lo, hi, w->pc, &w->buf,
+                     &w->capbuf))
+      return GR_EMEM;
+  if (box_sides(w, bi, bj)) return GR_EMEM;
+  for (size_t k = 0; k < w->pc->nb; k++) {
+    const gr_block *bk = &w->pc->b[k];
+    const double *p = w->pc->xy + 2 * bk->start;
+    if (bk->shape == GR_CLOSED) {
+      if (bk->n > 3 && gr_rings_add(out, p, bk->n - 1)) return GR_EMEM;
+    } else if (gr_layer_add(w->ed, GR_OPEN, GR_CONTOUR, 0, 2, p, bk->n)) {
+      return GR_EMEM;
+    }
+  }
+  return GR_OK;
+}
+
+/* Net direction of each line's elementary intervals: the face segments. */
+static int line_edges(fs_work *w) {
+  for (int line = 0; line < 8; line++) {
+    size_t nb = 0;
+    if (gr_grow(&w->bp, &w->capbp, 2 * w->niv + 1, sizeof *w->bp)) return GR_EMEM;
+    for (size_t k = 0; k < w->niv; k++)
+      if (w->iv[k].line == line) { w->bp[nb++] = w->iv[k].a; w->bp[nb++] = w->iv[k].b; }
+    qsort(w->bp, nb, sizeof *w->bp, dbl_cmp);
+    double fix = w->X[line & 3];
+    for (size_t k = 0; k + 1 < nb; k++) {
+      double p = w->bp[k], q = w->bp[k + 1], mid = 0.5 * (p + q);
+      if (!(q > p)) continue;
+      int net = 0;
+      for (size_t r = 0; r < w->niv; r++)
+        if (w->iv[r].line == line && w->iv[r].a < mid && w->iv[r].b > mid) net += w->iv[r].sgn;
+      if (net == 0) continue;
+      double s = net > 0 ? p : q, t = net > 0 ? q : p;
+      double seg[4] = {line < 4 ? fix : s, line < 4 ? s : fix, line < 4 ? fix : t, line < 4 ? t : fix};
+      if (gr_layer_add(w->ed, GR_OPEN, GR_CONTOUR, 0, 2, seg, 2)) return GR_EMEM;
+    }
+  }
+  return GR_OK;
+}
+
+/* Chain w->ed's edges end to start into closed rings (out). GR_EARG when an
+ * edge's end meets no start. */
+static int chain(fs_work *w, gr_rings *out, gr_err *e) {
+  const gr_layer *ed = w->ed;
+  size_t n = ed->nb;
+  char *used = calloc(n ? n : 1, 1);
+  if (!used) return gr_fail(e, GR_EMEM, "out of memory");
+  int rc = GR_OK;
+  for (size_t i = 0; i < n && rc == GR_OK; i++) {
+    if (used[i]) continue;
+    const double *s0 = ed->xy + 2 * ed->b[i].start;
+    size_t cur = i;
+    for (;;) {
+      const gr_block *bk = &ed->b[cur];
+      used[cur] = 1;
+      for (size_t k = 0; k + 1 < bk->n && rc == GR_OK; k++)
+        if (gr_rings_point(out, ed->xy[2 * (bk->start + k)], ed->xy[2 * (bk->start + k) + 1])) rc = GR_EMEM;
+      if (rc) break;
+      const double *end = ed->xy + 2 * (bk->start + bk->n - 1);
+      if (fabs(end[0] - s0[0]) <= JOIN && fabs(end[1] - s0[1]) <= JOIN) break;
+      size_t best = n;
+      double bd = JOIN * JOIN * 2;
+      for (size_t k = 0; k < n; k++) {
+        if (used[k]) continue;
+        const double *q = ed->xy + 2 * ed->b[k].start;
+        double dx = q[0] - end[0], dy = q[1] - end[1];
+        if (dx * dx + dy * dy <= bd) { bd = dx * dx + dy * dy; best = k; }
+      }
+      if (best == n) { rc = gr_fail(e, GR_EARG, "face step: open boundary at (%g, %g)", end[0], end[1]); break; }
+      cur = best;
+    }
+    if (rc == GR_OK && gr_rings_close(out)) rc = GR_EMEM;
+  }
+  free(used);
+  if (rc == GR_EMEM) return gr_fail(e, GR_EMEM, "out of memory");
+  return rc;
+}
+
+int gr_fstep_section(double L, double m, const gr_rings *const nb[9], gr_rings *out, gr_err *e) {
+  fs_work w;
+  memset(&w, 0, sizeof w);
+  /* the templates' sections are closed along their windows' borders: stay
+   * just inside, so that no box side runs along a section edge */
+  w.X[0] = -m + INSET;
+  w.X[1] = 0;
+  w.X[2] = L;
+  w.X[3] = L + m - INSET;
+  gr_rings_clear(out);
+  w.tr = gr_rings_new();
+  w.pc = gr_layer_new(0);
+  w.ed = gr_layer_new(0);
+  int rc = (w.tr && w.pc && w.ed) ? GR_OK : GR_EMEM;
+  for (int bj = 0; bj < 3 && rc == GR_OK; bj++)
+    for (int bi = 0; bi < 3 && rc == GR_OK; bi++) {
+      const gr_rings *r = nb[3 * bj + bi];
+      int own = r != NULL;
+      rc = add_box(&w, bi, bj, own ? r : nb[4], own ? (bi - 1) * L : 0, own ? (bj - 1) * L : 0, out);
+    }
+  if (rc == GR_OK) rc = line_edges(&w);
+  if (rc == GR_OK) rc = chain(&w, out, e);
+  else gr_fail(e, GR_EMEM, "out of memory");
+  if (rc) gr_rings_clear(out);
+  gr_rings_free(w.tr);
+  gr_layer_free(w.pc);
+  gr_layer_free(w.ed);
+  free(w.iv);
+  free(w.bp);
+  free(w.buf);
+  return rc;
+}
+
+/* The template layer of voxel v (local layer jl of its row), NULL when v has
+ * no class or template. */
+static const gr_tlayer *voxel_layer(const gr_job *j, int v, int jl) {
+  if (j->vcls[v] < 0) return NULL;
+  const gr_tmpl *t = j->cls[j->vcls[v]].t;
+  if (!t || jl < t->j0 || jl >= t->j0 + t->nl) return NULL;
+  return &t->l[jl - t->j0];
+}
+
+/* Where ring set r crosses the line x = pos (vert) or y = pos, along it,
+ * within [0, L]: sorted into *c (grown), count returned; -1 out of memory. */
+static long face_crossings(const gr_rings *r, int vert, double pos, double L, double **c, size_t *cap) {
+  long n = 0;
+  for (size_t i = 0; i < r->nrings; i++) {
+    const double *p = gr_ring_xy(r, i);
+    size_t m = gr_ring_len(r, i);
+    for (size_t a = 0; a < m; a++) {
+      const double *P = p + 2 * a, *Q = p + 2 * ((a + 1) % m);
+      double pa = vert ? P[0] : P[1], qa = vert ? Q[0] : Q[1];
+      if ((pa > pos) == (qa > pos)) continue;
+      double pl = vert ? P[1] : P[0], ql = vert ? Q[1] : Q[0], t = pl + (pos - pa) * (ql - pl) / (qa - pa);
+      if (t < 0 || t > L) continue;
+      if (gr_grow(c, cap, (size_t)n + 1, sizeof **c)) return -1;
+      (*c)[n++] = t;
+    }
+  }
+  qsort(*c, (size_t)n, sizeof **c, dbl_cmp);
+  return n;
+}
+
+/* 1 if the section a (the voxel's, continued past its side with its own
+ * grading) and b (the side neighbour's own, in its own coordinates) cross
+ * the shared face, or the lines s = h/3, 2h/3 and h into the neighbour, at
+ * different places (beyond FACE_TOL); 0 if not, -1 out of memory. side: 0
+ * x = 0, 1 x = L, 2 y = 0, 3 y = L; h: the hatch offset (the farthest the
+ * voxel's contours and hatch region look across the face). */
+static int face_differs(const gr_rings *a, const gr_rings *b, int side, double L, double h) {
+  int vert = side < 2, r = 0;
+  double *ca = NULL, *cb = NULL;
+  size_t capa = 0, capb = 0;
+  for (int q = 0; q < 4 && r == 0; q++) {
+    double s = q * h / 3, pa = (side & 1) ? L + s : -s, pb = (side & 1) ? s : L - s;
+    long na = face_crossings(a, vert, pa, L, &ca, &capa), nb = face_crossings(b, vert, pb, L, &cb, &capb);
+    r = na < 0 || nb < 0 ? -1 : na != nb;
+    for (long k = 0; r == 0 && k < na; k++)
+      if (fabs(ca[k] - cb[k]) > FACE_TOL) r = 1;
+  }
+  free(ca);
+  free(cb);
+  return r;
+}
+
+int gr_fstep_voxel(const gr_job *j, int v, int jl, gr_tlayer *out, int *done, gr_err *e) {
+  *done = 0;
+  int i, jj, k, nx = j->o.n[0], ny = j->o.n[1];
+  gr_grid_ijk(&j->grid, v, &i, &jj, &k);
+  const gr_tlayer *own = voxel_layer(j, v, jl);
+  if (!own) return GR_OK;
+  const gr_rings *nb[9];
+  int differ = 0, nc = j->o.contours;
+  double h = j->o.beam_offset + (nc > 1 ? nc - 1 : 0) * j->o.hatch + gr_hatch_defaults().gap;
+  for (int dj = -1; dj <= 1; dj++)
+    for (int di = -1; di <= 1; di++) {
+      const gr_tlayer *tl = NULL;
+      if (i + di >= 0 && i + di < nx && jj + dj >= 0 && jj + dj < ny)
+        tl = voxel_layer(j, v + di + dj * nx, jl);
+      nb[3 * (dj + 1) + di + 1] = tl ? tl->section : NULL;
+      if (tl && (di == 0) != (dj == 0) && !differ) {
+        int side = di < 0 ? 0 : di > 0 ? 1 : dj < 0 ? 2 : 3;
+        /* both ways: the two voxels must agree on whether the face steps */
+        int r = face_differs(own->section, tl->section, side, j->o.cell, h);
+        if (r == 0) r = face_differs(tl->section, own->section, side ^ 1, j->o.cell, h);
+        if (r < 0) return gr_fail(e, GR_EMEM, "out of memory");
+        differ |= r;
+      }
+    }
+  if (!differ) return GR_OK;
+  if (!out->section && !(out->section = gr_rings_new())) return gr_fail(e, GR_EMEM, "out of memory");
+  int rc = gr_fstep_section(j->o.cell, gr_tmpl_window(&j->o), nb, out->section, e);
+  if (rc == GR_EARG) { /* degenerate: keep the template's layer */
+    gr_err_clear(e);
+    return GR_OK;
+  }
+  if (rc) return rc;
+  out->area = own->area;
+  out->q[0] = out->q[1] = out->q[2] = NAN;
+  rc = gr_tmpl_paths(&j->o, out, 1, e);
+  *done = rc == GR_OK;
+  return rc;
+}
+
+void gr_fstep_free(gr_tlayer *tl) {
+  gr_rings_free(tl->section);
+  gr_rings_free(tl->region);
+  gr_layer_free(tl->paths);
+  gr_layer_free(tl->faces);
+  memset(tl, 0, sizeof *tl);
+}

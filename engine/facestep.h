@@ -1,0 +1,43 @@
+/* facestep.h: the voxel-owned section around a voxel whose neighbours are
+ * graded differently (a primitive of the layer-assembly stage).
+ *
+ * Under voxel-owned grading each voxel's solid comes from its own grading;
+ * where neighbours differ, the solid steps exactly on their shared face. A
+ * template's section covers a window a margin m wider than its voxel, with
+ * the voxel's own grading continued beyond its faces, so near a face between
+ * differently graded voxels its contours are those of the wrong solid. This
+ * builds the true section of the window: the union, over the voxel and its
+ * eight neighbours, of each one's section cut to its own part of the window,
+ * the face segments where only one side is solid included (exact polygons:
+ * no sampling). Contours and hatch regions computed from it then run along
+ * the step at the beam offset and hatch offset (template.h: gr_tmpl_paths).
+ *
+ * Takes: the cell size L and margin m (mm) and nine section ring sets in
+ * the voxel-local coordinates of their own voxels (nb[3 * (dj + 1) + di + 1]
+ * for the neighbour at (di, dj), di, dj in -1..1; NULL = no neighbour: the
+ * centre's own section is used there, as the template does). Gives: closed
+ * rings of the window [-m, L + m]^2 in the centre voxel's coordinates, solid
+ * on the left, closed along the window's border like a template section. */
+#ifndef GR_FACESTEP_H
+#define GR_FACESTEP_H
+#include "job.h"
+#include "paths.h"
+#include "template.h"
+
+/* The window's section into out (cleared first). GR_OK, GR_EMEM, or GR_EARG
+ * when the pieces do not close into rings (degenerate input: a section edge
+ * lying along a face); out is then empty and the caller keeps the template. */
+int gr_fstep_section(double L, double m, const gr_rings *const nb[9], gr_rings *out, gr_err *e);
+/* Voxel v of job j on its row's local layer jl: when its template's section,
+ * continued past a side with the voxel's own grading, differs from the side
+ * neighbour's own section within the hatch offset of their face (crossings of
+ * the face and of three lines parallel to it more than 0.2 um apart: a step,
+ * or a grading that changes across the face, such as a sine in u), its layer
+ * is recomputed on the window's true section (gr_tmpl_paths) into out (a
+ * zeroed gr_tlayer; free it with gr_fstep_free) and *done = 1; *done = 0 when
+ * not needed or degenerate (keep the template's layer). GR_OK or GR_EMEM (e
+ * filled). Thread-safe for distinct out. */
+int gr_fstep_voxel(const gr_job *j, int v, int jl, gr_tlayer *out, int *done, gr_err *e);
+void gr_fstep_free(gr_tlayer *tl); /* frees the members, zeroes tl */
+
+#endif

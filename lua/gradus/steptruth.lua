@@ -1,0 +1,147 @@
+--- gradus.steptruth: the true section of voxels graded differently, for
+-- measurements (tests, recipes/quality.lua), independent of the engine's
+-- templates and of its face-step code (engine/facestep.c).
+--
+-- Under voxel-owned grading a voxel's solid is its own field's, cut at its
+-- faces: where neighbours differ, the section steps exactly on the face.
+-- Two views of that section:
+--  - M.field(voxels): one field for slicing and point tests, the union of
+--    each voxel's field cut to its voxel by half-spaces (a point on a face
+--    belongs to the voxel above it). Sliced on a grid its step corners are
+--    cut by up to a grid cell where they fall between nodes: fine for areas
+--    (verify's pore and overmelt), not for micrometre distances.
+--  - M.edges(voxels, z, window, cell): the boundary as segments, exact at the
+--    step: each voxel's own field sliced over its own square (crossings on the
+--    faces refined on that field), the edges along the faces replaced by the
+--    parts of the face where exactly one side is solid.
+-- voxels: list of {lo = {x, y}, hi = {x, y}, field = f} (squares tiling the
+-- region, fields of gradus.distance.offset or any gradus field).
+local gradus = require "gradus"
+local M = {}
+
+function M.field(voxels)
+  local F
+  for _, v in ipairs(voxels) do
+    -- inside the square: x in [lo, hi), y in [lo, hi)
+    local box = gradus.field.expr(("max(max(%.17g - x - 1e-9, x - %.17g), max(%.17g - y - 1e-9, y - %.17g))")
+      :format(v.lo[1], v.hi[1], v.lo[2], v.hi[2]))
+    local g = gradus.field.max(v.field, box)
+    F = F and gradus.field.min(F, g) or g
+  end
+  return F
+end
+
+local function inside(list, s)
+  for _, iv in ipairs(list) do if s > iv[1] and s < iv[2] then return true end end
+  return false
+end
+
+--- M.edges(voxels, z, window, cell) -> segments {{x0, y0, x1, y1}, ...}:
+-- the true boundary inside window = {lo = {x, y}, hi = {x, y}} (closed along
+-- the window's border), sliced at height z with grid cell `cell` (mm).
+function M.edges(voxels, z, window, cell)
+  local E, face = {}, {} -- face["x=2"] = {lo = {intervals of the voxels below}, hi = {...}}
+  local function on_face(ax, c, side, s0, s1)
+    local key = ("%d:%.17g"):format(ax, c)
+    face[key] = face[key] or { ax = ax, c = c, lo = {}, hi = {} }
+    local l = face[key][side]
+    l[#l + 1] = { math.min(s0, s1), math.max(s0, s1) }
+  end
+  for _, v in ipairs(voxels) do
+    local lo = { math.max(v.lo[1], window.lo[1]), math.max(v.lo[2], window.lo[2]) }
+    local hi = { math.min(v.hi[1], window.hi[1]), math.min(v.hi[2], window.hi[2]) }
+    if hi[1] > lo[1] and hi[2] > lo[2] then
+      local sec = gradus.slice.field(v.field, z, { lo = lo, hi = hi, cell = cell })
+      for i = 1, sec:count() do
+        local r = sec:ring(i)
+        local n = #r // 2
+        for k = 1, n do
+          local k2 = k % n + 1
+          local e = { r[2 * k - 1], r[2 * k], r[2 * k2 - 1], r[2 * k2] }
+          local done = false
+          for ax = 1, 2 do
+            for _, c in ipairs { lo[ax], hi[ax] } do
+              local interior = c > window.lo[ax] and c < window.hi[ax]
+              if not done and interior and math.abs(e[ax] - c) < 1e-9 and math.abs(e[ax + 2] - c) < 1e-9 then
+                on_face(ax, c, c == hi[ax] and "lo" or "hi", e[3 - ax], e[5 - ax])
+                done = true
+              end
+            end
+          end
+          if not done then E[#E + 1] = e end
+        end
+      end
+    end
+  end
+  for _, f in pairs(face) do
+    local bp = {}
+    for _, side in ipairs { "lo", "hi" } do
+      for _, iv in ipairs(f[side]) do bp[#bp + 1] = iv[1]; bp[#bp + 1] = iv[2] end
+    end
+    table.sort(bp)
+    for k = 1, #bp - 1 do
+      local m = 0.5 * (bp[k] + bp[k + 1])
+      if bp[k + 1] > bp[k] and inside(f.lo, m) ~= inside(f.hi, m) then
+        E[#E + 1] = f.ax == 1 and { f.c, bp[k], f.c, bp[k + 1] } or { bp[k], f.c, bp[k + 1], f.c }
+      end
+    end
+  end
+  return E
+end
+
+--- M.deviations(layer, E, b, box) -> sorted list of | distance - b | (mm) of
+-- the points of the layer's contours (thin-wall lines excluded) to the
+-- segments E; box = {x0, y0, x1, y1}: only points inside it (optional).
+function M.deviations(layer, E, b, box)
+  local h = 0.05
+  local grid = {}
+  local function key(i, j) return i * 1000003 + j end
+  for _, e in ipairs(E) do
+    local i0, i1 = math.floor(math.min(e[1], e[3]) / h), math.floor(math.max(e[1], e[3]) / h)
+    local j0, j1 = math.floor(math.min(e[2], e[4]) / h), math.floor(math.max(e[2], e[4]) / h)
+    for i = i0, i1 do
+      for j = j0, j1 do
+        local k = key(i, j)
+        grid[k] = grid[k] or {}
+        grid[k][#grid[k] + 1] = e
+      end
+    end
+  end
+  local reach = math.ceil(3 * b / h) + 1
+  local devs = {}
+  for _, bk in ipairs(layer:blocks()) do
+    if bk.kind == "contour" and not bk.thin then
+      local P = bk.points
+      for q = 1, #P, 2 do
+        local px, py = P[q], P[q + 1]
+        if not box or (px >= box[1] and px <= box[3] and py >= box[2] and py <= box[4]) then
+          local best, pi, pj = math.huge, math.floor(px / h), math.floor(py / h)
+          for i = pi - reach, pi + reach do
+            for j = pj - reach, pj + reach do
+              for _, e in ipairs(grid[key(i, j)] or {}) do
+                local ex, ey = e[3] - e[1], e[4] - e[2]
+                local l2 = ex * ex + ey * ey
+                local s = l2 > 0 and ((px - e[1]) * ex + (py - e[2]) * ey) / l2 or 0
+                s = s < 0 and 0 or s > 1 and 1 or s
+                local dx, dy = e[1] + s * ex - px, e[2] + s * ey - py
+                local dd = dx * dx + dy * dy
+                if dd < best then best = dd end
+              end
+            end
+          end
+          devs[#devs + 1] = math.abs(math.sqrt(best) - b)
+        end
+      end
+    end
+  end
+  table.sort(devs)
+  return devs
+end
+
+--- M.quantile(sorted, p) -> the p-quantile of a sorted list (0 when empty).
+function M.quantile(s, p)
+  if #s == 0 then return 0 end
+  return s[math.max(1, math.ceil(p * #s))]
+end
+
+return M
