@@ -102,17 +102,6 @@ static gr_field *voxel_field(gr_job *j, int v, int trimmed, gr_field *like, cons
   return g;
 }
 
-/* Once a template is built, qualified and stored (or read from the knowledge
- * base), its sections (the section rings in a window wider than the voxel,
- * the largest part of it) serve nothing more: layer assembly uses the
- * contours, faces and hatch regions. Dropped to keep streamed bands small. */
-static void drop_sections(gr_tmpl *t) {
-  for (int i = 0; t && i < t->nl; i++) {
-    gr_rings_free(t->l[i].section);
-    t->l[i].section = NULL;
-  }
-}
-
 /* Phase 1, per class: take the template from the knowledge base, or make the
  * class's field and allocate its template. */
 static int prepare_item(void *arg_, int item, gr_err *e) {
@@ -139,7 +128,6 @@ static int prepare_item(void *arg_, int item, gr_err *e) {
     if (r) {
       gr_tmpl *t = gr_tmpl_from_record(&j->o, r, nl);
       gr_template_free(r);
-      drop_sections(t);
       if (t) {
         gr_tmpl_free(cl->t);
         cl->t = t;
@@ -204,8 +192,8 @@ static int will_store(const gr_build *a, const gr_vclass *cl) {
   return a->kb && !cl->trimmed && a->jb < 0 && should_store(a->kb_store, cl->count);
 }
 
-/* Phase 2, per (class, layer chunk); the chunk's sections dropped at once
- * when no knowledge-base record will need them (drop_sections). */
+/* Phase 2, per (class, layer chunk). The sections stay: layer assembly
+ * reads them where a neighbour is graded otherwise (facestep.h). */
 static int layers_item(void *arg_, int item, gr_err *e) {
   gr_build *a = arg_;
   gr_job *j = a->j;
@@ -216,12 +204,7 @@ static int layers_item(void *arg_, int item, gr_err *e) {
   gr_grid_origin(&j->grid, cl->rep, in.vo);
   gr_grid_ijk(&j->grid, cl->rep, &i, &jj, &k);
   in.g0 = gr_grid_row_first(&j->grid, k);
-  int rc = gr_tmpl_layers(&in, cl->t, cl->field, a->tab, a->wa[item], a->wb[item], e);
-  for (int q = a->wa[item]; rc == GR_OK && !will_store(a, cl) && q < a->wb[item]; q++) {
-    gr_rings_free(cl->t->l[q].section);
-    cl->t->l[q].section = NULL;
-  }
-  return rc;
+  return gr_tmpl_layers(&in, cl->t, cl->field, a->tab, a->wa[item], a->wb[item], e);
 }
 
 /* Phase 2a, per table layer: the shared closest points. */
@@ -265,7 +248,6 @@ static int store_item(void *arg_, int item, gr_err *e) {
     gr_template_free(r);
     if (rc) return rc;
   }
-  drop_sections(cl->t);
   return GR_OK;
 }
 

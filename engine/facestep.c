@@ -293,6 +293,8 @@ int gr_fstep_voxel(const gr_job *j, int v, int jl, gr_tlayer *out, int *done, gr
       const gr_tlayer *tl = NULL;
       if (i + di >= 0 && i + di < nx && jj + dj >= 0 && jj + dj < ny)
         tl = voxel_layer(j, v + di + dj * nx, jl);
+      if (tl && !tl->section) /* templates keep their sections (build.c) */
+        return gr_fail(e, GR_EARG, "internal: the template of voxel %d has no section on row layer %d", v + di + dj * nx, jl);
       nb[3 * (dj + 1) + di + 1] = tl ? tl->section : NULL;
       if (tl && (di == 0) != (dj == 0) && !differ) {
         int side = di < 0 ? 0 : di > 0 ? 1 : dj < 0 ? 2 : 3;
