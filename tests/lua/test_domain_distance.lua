@@ -144,6 +144,44 @@ t.test("skin of an STL cylinder: depth in mm (within the facets' chord error)", 
   check_ring("STL", l, 0.002)
 end)
 
+local function seg_dist(px, py, x0, y0, x1, y1)
+  local dx, dy = x1 - x0, y1 - y0
+  local u = math.max(0, math.min(1, ((px - x0) * dx + (py - y0) * dy) / (dx * dx + dy * dy)))
+  return math.sqrt((x0 + u * dx - px) ^ 2 + (y0 + u * dy - py) ^ 2)
+end
+
+t.test("gyroid in a squared cylinder with a skin: every contour closed across voxel borders, the band hatched", function()
+  local p = lattice.params()
+  p.surface, p.thickness, p.mode, p.res = "gyroid", "0.08", "mesh", 20
+  p.cells, p.kb, p.layers, p.pictures, p.hatch = "5,5,1", "off", "12:13", "12,13", D
+  p.domain, p.skin = SQUARED, S
+  local _, kept = lattice.run(p, nil)
+  for _, g in ipairs { 12, 13 } do
+    local open, closed, rmax, segs = 0, 0, 0, {}
+    for _, b in ipairs(kept[g]:blocks()) do
+      local P = b.points
+      if b.kind == "contour" then
+        if b.shape == "closed" and P[1] == P[#P - 1] and P[2] == P[#P] then closed = closed + 1 else open = open + 1 end
+        for k = 1, #P - 1, 2 do rmax = math.max(rmax, math.sqrt((P[k] - 5) ^ 2 + (P[k + 1] - 5) ^ 2)) end
+      elseif b.kind == "hatch" then
+        for q = 1, #P - 3, 4 do segs[#segs + 1] = { P[q], P[q + 1], P[q + 2], P[q + 3] } end
+      end
+    end
+    t.eq(open, 0, ("layer %d: contour polylines not closed"):format(g))
+    t.ok(closed >= 2, ("layer %d: %d closed contours"):format(g, closed))
+    t.near(rmax, R - B, 1e-3, ("layer %d: the outer contour at R - b"):format(g))
+    -- every point at half the skin's depth is hatched (within half a spacing of a vector)
+    local miss = 0
+    for k = 1, 120 do
+      local a = 2 * math.pi * k / 120
+      local px, py, best = 5 + (R - S / 2) * math.cos(a), 5 + (R - S / 2) * math.sin(a), math.huge
+      for _, sg in ipairs(segs) do best = math.min(best, seg_dist(px, py, sg[1], sg[2], sg[3], sg[4])) end
+      if best > D / 2 + 1e-6 then miss = miss + 1 end
+    end
+    t.eq(miss, 0, ("layer %d: points at depth s/2 left unhatched"):format(g))
+  end
+end)
+
 t.test("a domain empty inside the box of cells, or NaN from the domain, is refused", function()
   local p = lattice.params()
   p.cells, p.kb, p.layers, p.mode, p.res = "2,2,1", "off", "1:1", "mesh", 20
