@@ -152,11 +152,13 @@ end
 
 t.test("gyroid in a squared cylinder with a skin: every contour closed across voxel borders, the band hatched", function()
   local p = lattice.params()
-  p.surface, p.thickness, p.mode, p.res = "gyroid", "0.08", "mesh", 20
-  p.cells, p.kb, p.layers, p.pictures, p.hatch = "5,5,1", "off", "12:13", "12,13", D
+  -- layer 31 (z = 1.22): the gyroid grazes the skin's inner side at a voxel border (x = 2.8, y = 2),
+  -- where a 16 um excursion of the contour across the border was left open before
+  p.surface = "gyroid"
+  p.cells, p.kb, p.layers, p.pictures, p.hatch = "5,5,1", "off", "31:31", "31", D
   p.domain, p.skin = SQUARED, S
   local _, kept = lattice.run(p, nil)
-  for _, g in ipairs { 12, 13 } do
+  for _, g in ipairs { 31 } do
     local open, closed, rmax, segs = 0, 0, 0, {}
     for _, b in ipairs(kept[g]:blocks()) do
       local P = b.points
