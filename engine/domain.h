@@ -27,6 +27,13 @@
  * "domain" in the message. NULL and GR_EMEM in e when out of memory. */
 gr_field *gr_domain_distance(gr_field *f, double band, double L, gr_err *e);
 
+/* The part of a trimmed voxel: its lattice field g cut by the domain d
+ * (negative inside), with a solid skin of depth `skin` (mm, 0: none) along
+ * d's boundary: max(d, min(g, -d - skin)), or max(g, d) without a skin; g
+ * and d evaluated once per point (new references taken). NULL and GR_EMEM in
+ * e when out of memory. */
+gr_field *gr_domain_trim(gr_field *g, gr_field *d, double skin, gr_err *e);
+
 /* 1 if d is such a true-distance wrapper. */
 int gr_domain_is_distance(const gr_field *d);
 
