@@ -258,6 +258,16 @@ static int emit_chains(gr_asm_scratch *s, size_t b0, size_t n, double track, gr_
         if (q == (long)i) closed = 1;
       }
       if (rc) break;
+      /* an open chain whose ends meet within a melt track is a loop whose tiny excursion across a
+       * voxel border the neighbour's grid did not see (e.g. where the lattice grazes the skin):
+       * closed with the short step between its ends */
+      if (!closed && m > 2 && bk->dir != GR_DIR_THIN &&
+          hypot(s->pts[2 * (m - 1)] - s->pts[0], s->pts[2 * (m - 1) + 1] - s->pts[1]) <= track) {
+        if (gr_grow(&s->pts, &s->cappts, m + 1, 2 * sizeof(double))) { rc = GR_EMEM; break; }
+        s->pts[2 * m] = s->pts[0], s->pts[2 * m + 1] = s->pts[1];
+        m++;
+        closed = 1;
+      }
       ps[np] = m - 1;
       if (closed && bk->dir != GR_DIR_THIN && short_loop(s->pts, m, track, out)) continue;
       gr_stitch_chain ch = {s->pts, m, closed, bk->kind, bk->dir, ps, pl, np};

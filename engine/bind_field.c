@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "bind.h"
+#include "domain.h"
 
 #define GRID_MT "gradus.field.grid" /* temporary owner of a sampled grid */
 
@@ -190,6 +191,19 @@ static int l_sphere(lua_State *L) {
   size_t k = strlen(src);
   snprintf(src + k, sizeof src - k, ")-%s", num);
   return push_new(L, expr_or_raise(L, src));
+}
+
+/* distance(f, {band=mm, cell=mm}): f (negative inside, any scale) as a
+ * signed distance to its zero set, exact within band (domain.h). */
+static int l_distance(lua_State *L) {
+  gr_field *f = gr_to_field(L, 1);
+  gr_err e;
+  gr_err_clear(&e);
+  gr_field *d = gr_domain_distance(f, gr_opt_number(L, 2, "band", 1), gr_opt_number(L, 2, "cell", 1), &e);
+  gr_field_free(f);
+  if (!d) return gr_lua_error(L, &e);
+  gr_push_field(L, d);
+  return 1;
 }
 
 /* cylinder(r, {center={x,y}}): distance to a z-parallel cylinder. */
@@ -436,7 +450,7 @@ static const luaL_Reg field_fns[] = {
   {"tpms", l_tpms},     {"surfaces", l_surfaces}, {"expr", l_expr},
   {"lua", l_lua},       {"constant", l_constant}, {"sphere", l_sphere},
   {"cylinder", l_cylinder}, {"min", l_min},       {"max", l_max},
-  {"blend", l_blend},   {NULL, NULL}};
+  {"blend", l_blend},   {"distance", l_distance}, {NULL, NULL}};
 
 static const luaL_Reg field_methods[] = {
   {"eval", m_eval},           {"eval_many", m_eval_many}, {"grad", m_grad},

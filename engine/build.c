@@ -4,31 +4,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include "distance.h"
+#include "domain.h"
 #include "pool.h"
-
-/* -domain - skin, negative inside the skin band's inner side. */
-typedef struct skin_ud { gr_field *d; double s; } skin_ud;
-static int skin_eval(void *ud, size_t n, const double *x, const double *y,
-                     const double *z, double *out, gr_err *e) {
-  skin_ud *k = ud;
-  if (gr_field_eval(k->d, n, x, y, z, out, e)) return e->code;
-  for (size_t i = 0; i < n; i++) out[i] = -out[i] - k->s;
-  return GR_OK;
-}
-static void skin_free(void *ud) {
-  skin_ud *k = ud;
-  gr_field_free(k->d);
-  free(k);
-}
-static gr_field *skin_field(gr_field *d, double s) {
-  skin_ud *k = malloc(sizeof *k);
-  if (!k) return NULL;
-  k->d = gr_field_ref(d);
-  k->s = s;
-  gr_field *f = gr_field_callback(skin_eval, NULL, k, skin_free, gr_field_threadsafe(d), "skin");
-  if (!f) skin_free(k);
-  return f;
-}
 
 /* Offset options of spec s for the voxel with min corner o (u, v, w
  * relative to that voxel), H meshed over it grown by a margin (+ extra, mm). */
@@ -84,20 +61,11 @@ static gr_field *voxel_field(gr_job *j, int v, int trimmed, gr_field *like, cons
   gr_field_free(phi);
   if (!g) return NULL;
   if (trimmed && j->domain) {
-    gr_field *f = g;
-    if (j->skin > 0) {
-      /* solid skin {-skin <= domain <= 0}: part = max(domain, min(g, -domain - skin)) */
-      gr_field *sk = skin_field(j->domain, j->skin);
-      gr_field *inner = sk ? gr_field_min(g, sk) : NULL;
-      gr_field_free(sk);
-      f = inner ? gr_field_max(j->domain, inner) : NULL;
-      gr_field_free(inner);
-    } else {
-      f = gr_field_max(g, j->domain);
-    }
+    /* cut by the domain, with the solid skin along its boundary (domain.h) */
+    gr_field *f = gr_domain_trim(g, j->domain, j->skin, e);
     gr_field_free(g);
     g = f;
-    if (!g) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
+    if (!g) return NULL;
   }
   return g;
 }

@@ -70,6 +70,12 @@ static int classify_domain(gr_job *j, gr_err *e) {
         for (int a = 0; a < 3; a++) { ilo[a] = fmin(ilo[a], p[a]); ihi[a] = fmax(ihi[a], p[a]); }
       }
   }
+  /* a domain positive at every sample holds nothing of the part: refuse it */
+  int any = 0, some = 0;
+  for (int v = 0; v < j->nvox; v++) some |= j->vspec[v] >= 0, any |= j->vspec[v] >= 0 && j->vstate[v] != 0;
+  if (some && !any)
+    return gr_fail(e, GR_EARG, "the domain %s is empty inside the box of cells (positive at every sample): no part",
+                   gr_field_describe(j->domain));
   /* a domain smaller than one cell along every axis holds no cell: refuse it
    * (extent from the samples inside it, one sample spacing added) */
   int small = isfinite(ilo[0]);

@@ -1,0 +1,254 @@
+/* domain.c: a design domain's field made a signed distance, see domain.h. */
+#include "domain.h"
+#include "bvh.h"
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define DOM_ITERS 60     /* projection rounds (most points stop after 2-5) */
+#define DOM_FAR 1e6      /* mm: the value where the gradient vanishes */
+
+typedef struct dom {
+  gr_field *f;
+  double band; /* mm: exact distances below this */
+  double tol;  /* mm: convergence of the closest point */
+} dom;
+
+/* An error of the domain's own field, said to come from the domain. */
+static int dom_fail(gr_err *e) {
+  if (e && strncmp(e->msg, "domain", 6) != 0) {
+    char m[sizeof e->msg];
+    memcpy(m, e->msg, sizeof m);
+    m[sizeof m - 9] = 0;
+    snprintf(e->msg, sizeof e->msg, "domain: %.500s", m);
+  }
+  return e ? e->code : GR_ENUM;
+}
+
+/* Value and gradient of f at n points, the gradient by forward differences
+ * (3 evaluations more, where central differences take 6; step
+ * 1e-7 of the coordinates' size: a relative error near 1e-8, which moves the
+ * closest point by less than 1e-7 of the distance). s: 3n scratch. */
+static int value_grad(const gr_field *f, size_t n, const double *x, const double *y, const double *z, double *v,
+                      double *gx, double *gy, double *gz, double *s, gr_err *e) {
+  if (gr_field_eval(f, n, x, y, z, v, e)) return e->code;
+  double *h = s, *c = s + n, *fv = s + 2 * n;
+  for (int a = 0; a < 3; a++) {
+    const double *src = a == 0 ? x : a == 1 ? y : z;
+    double *g = a == 0 ? gx : a == 1 ? gy : gz;
+    for (size_t i = 0; i < n; i++) {
+      double st = 1e-7 * fmax(1.0, fabs(src[i]));
+      c[i] = src[i] + st;
+      h[i] = c[i] - src[i]; /* the step actually taken */
+    }
+    if (gr_field_eval(f, n, a == 0 ? c : x, a == 1 ? c : y, a == 2 ? c : z, fv, e)) return e->code;
+    for (size_t i = 0; i < n; i++) g[i] = (fv[i] - v[i]) / h[i];
+  }
+  return GR_OK;
+}
+
+/* Scratch of n points: value, gradient and the moving foot points. */
+typedef struct dom_work {
+  double *v, *gx, *gy, *gz, *qx, *qy, *qz, *s;
+  size_t *act;
+} dom_work;
+
+static int work_new(dom_work *w, size_t n) {
+  double *b = malloc((n ? n : 1) * 10 * sizeof *b);
+  w->act = malloc((n ? n : 1) * sizeof *w->act);
+  if (!b || !w->act) { free(b); free(w->act); return GR_EMEM; }
+  w->v = b, w->gx = b + n, w->gy = b + 2 * n, w->gz = b + 3 * n;
+  w->qx = b + 4 * n, w->qy = b + 5 * n, w->qz = b + 6 * n, w->s = b + 7 * n;
+  return GR_OK;
+}
+static void work_free(dom_work *w) {
+  free(w->v);
+  free(w->act);
+}
+
+/* Project the m points act[] (p given, q started at p, the value and gradient
+ * there packed in w's arrays) onto f = 0 together:
+ * q <- p - ((f(q) + grad f(q).(p - q)) / |grad f(q)|^2) grad f(q). Writes
+ * |p - q| into out[] for those that converge; the others keep out[] (the
+ * first-order estimate). Uses w's value/gradient arrays as scratch, packed
+ * in the order of the active points. */
+static int project(const dom *d, const double *x, const double *y, const double *z, dom_work *w, size_t m,
+                   double *out, gr_err *e) {
+  for (int it = 0; it < DOM_ITERS && m > 0; it++) {
+    /* the active feet are packed at the front of qx, qy, qz */
+    /* round 0 starts at q = p, whose value and gradient the caller packed */
+    if (it > 0 && value_grad(d->f, m, w->qx, w->qy, w->qz, w->v, w->gx, w->gy, w->gz, w->s, e)) return dom_fail(e);
+    size_t keep = 0;
+    for (size_t k = 0; k < m; k++) {
+      size_t i = w->act[k];
+      double g[3] = {w->gx[k], w->gy[k], w->gz[k]}, g2 = gr_dot3(g, g);
+      if (!(g2 > 1e-300)) continue; /* a critical point: keep the estimate */
+      double r[3] = {x[i] - w->qx[k], y[i] - w->qy[k], z[i] - w->qz[k]};
+      double lam = (w->v[k] + gr_dot3(g, r)) / g2;
+      double q[3] = {x[i] - lam * g[0], y[i] - lam * g[1], z[i] - lam * g[2]};
+      double step = sqrt((q[0] - w->qx[k]) * (q[0] - w->qx[k]) + (q[1] - w->qy[k]) * (q[1] - w->qy[k]) +
+                         (q[2] - w->qz[k]) * (q[2] - w->qz[k]));
+      double dist = fabs(lam) * sqrt(g2);
+      if (!isfinite(step) || dist > 4 * d->band) continue; /* ran off: the estimate stands */
+      if (step < d->tol && fabs(w->v[k]) < d->tol * sqrt(g2)) {
+        out[i] = dist;
+        continue;
+      }
+      w->act[keep] = i;
+      w->qx[keep] = q[0], w->qy[keep] = q[1], w->qz[keep] = q[2];
+      keep++;
+    }
+    m = keep;
+  }
+  return GR_OK;
+}
+
+static int dom_eval(void *ud, size_t n, const double *x, const double *y, const double *z, double *out,
+                    gr_err *e) {
+  const dom *d = ud;
+  dom_work w;
+  if (work_new(&w, n)) return gr_fail(e, GR_EMEM, "out of memory");
+  int rc = value_grad(d->f, n, x, y, z, w.v, w.gx, w.gy, w.gz, w.s, e);
+  if (rc) {
+    work_free(&w);
+    return dom_fail(e);
+  }
+  double *sg = malloc((n ? n : 1) * sizeof *sg);
+  if (!sg) {
+    work_free(&w);
+    return gr_fail(e, GR_EMEM, "out of memory");
+  }
+  size_t m = 0;
+  for (size_t i = 0; i < n; i++) {
+    double v = w.v[i], g = sqrt(w.gx[i] * w.gx[i] + w.gy[i] * w.gy[i] + w.gz[i] * w.gz[i]);
+    sg[i] = v < 0 ? -1 : 1;
+    double est = g > 0 ? fabs(v) / g : DOM_FAR;
+    out[i] = fmin(est, DOM_FAR);
+    if (v == 0) { out[i] = 0; continue; }
+    if (est >= d->band) { out[i] = fmax(out[i], d->band); continue; }
+    w.act[m] = i; /* packed in place: m <= i, entries below i are read already */
+    w.qx[m] = x[i], w.qy[m] = y[i], w.qz[m] = z[i];
+    w.v[m] = v, w.gx[m] = w.gx[i], w.gy[m] = w.gy[i], w.gz[m] = w.gz[i];
+    m++;
+  }
+  rc = project(d, x, y, z, &w, m, out, e);
+  for (size_t i = 0; i < n; i++) out[i] *= sg[i];
+  free(sg);
+  work_free(&w);
+  return rc;
+}
+
+/* The unit normal grad f / |grad f| (the gradient of the distance where it
+ * is one), 0 at critical points. */
+static int dom_grad(void *ud, size_t n, const double *x, const double *y, const double *z, double *gx, double *gy,
+                    double *gz, gr_err *e) {
+  const dom *d = ud;
+  if (gr_field_grad(d->f, n, x, y, z, gx, gy, gz, e)) return dom_fail(e);
+  for (size_t i = 0; i < n; i++) {
+    double g = sqrt(gx[i] * gx[i] + gy[i] * gy[i] + gz[i] * gz[i]);
+    if (g > 0) gx[i] /= g, gy[i] /= g, gz[i] /= g;
+  }
+  return GR_OK;
+}
+
+static void dom_free(void *ud) {
+  dom *d = ud;
+  gr_field_free(d->f);
+  free(d);
+}
+
+gr_field *gr_domain_distance(gr_field *f, double band, double L, gr_err *e) {
+  if (!f) return NULL;
+  if (gr_field_lipschitz(f) <= 1 || gr_domain_is_distance(f)) return gr_field_ref(f);
+  if (!(band > 0) || !(L > 0) || !isfinite(band) || !isfinite(L))
+    return gr_fail(e, GR_EARG, "domain distance: band %g mm and cell %g mm must be > 0", band, L), NULL;
+  dom *d = malloc(sizeof *d);
+  if (!d) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
+  d->f = gr_field_ref(f);
+  d->band = band;
+  d->tol = 1e-9 * fmax(L, 1);
+  char desc[256];
+  snprintf(desc, sizeof desc, "%s", gr_field_describe(f));
+  gr_field *r = gr_field_callback(dom_eval, dom_grad, d, dom_free, gr_field_threadsafe(f), desc);
+  if (!r) {
+    dom_free(d);
+    return gr_fail(e, GR_EMEM, "out of memory"), NULL;
+  }
+  return r;
+}
+
+int gr_domain_is_distance(const gr_field *d) { return gr_field_callback_data(d, dom_eval) != NULL; }
+
+/* ---- the trimmed part field ---- */
+
+typedef struct trim {
+  gr_field *g, *d;
+  double skin;
+} trim;
+
+/* max(d, min(g, -d - skin)) (skin > 0) or max(g, d), from one evaluation of
+ * each; sel (may be NULL) gets 1 where d decides, 2 where -d - skin does. */
+static int trim_values(const trim *t, size_t n, const double *x, const double *y, const double *z, double *out,
+                       double *dv, unsigned char *sel, gr_err *e) {
+  if (gr_field_eval(t->g, n, x, y, z, out, e) || gr_field_eval(t->d, n, x, y, z, dv, e)) return e->code;
+  for (size_t i = 0; i < n; i++) {
+    int s = 0;
+    if (t->skin > 0 && -dv[i] - t->skin < out[i]) out[i] = -dv[i] - t->skin, s = 2;
+    if (dv[i] > out[i]) out[i] = dv[i], s = 1;
+    if (sel) sel[i] = (unsigned char)s;
+  }
+  return GR_OK;
+}
+
+static int trim_eval(void *ud, size_t n, const double *x, const double *y, const double *z, double *out,
+                     gr_err *e) {
+  double *dv = malloc((n ? n : 1) * sizeof *dv);
+  if (!dv) return gr_fail(e, GR_EMEM, "out of memory");
+  int rc = trim_values(ud, n, x, y, z, out, dv, NULL, e);
+  free(dv);
+  return rc;
+}
+
+/* The gradient of the branch that decides (g on ties, like min and max). */
+static int trim_grad(void *ud, size_t n, const double *x, const double *y, const double *z, double *gx, double *gy,
+                     double *gz, gr_err *e) {
+  const trim *t = ud;
+  double *b = malloc((n ? n : 1) * 5 * sizeof *b);
+  unsigned char *sel = malloc(n ? n : 1);
+  int rc = b && sel ? GR_OK : gr_fail(e, GR_EMEM, "out of memory");
+  if (rc == GR_OK) rc = trim_values(t, n, x, y, z, b, b + n, sel, e);
+  if (rc == GR_OK) rc = gr_field_grad(t->g, n, x, y, z, gx, gy, gz, e);
+  if (rc == GR_OK) rc = gr_field_grad(t->d, n, x, y, z, b, b + n, b + 2 * n, e);
+  for (size_t i = 0; rc == GR_OK && i < n; i++) {
+    double s = sel[i] == 1 ? 1 : sel[i] == 2 ? -1 : 0;
+    if (s != 0) gx[i] = s * b[i], gy[i] = s * b[n + i], gz[i] = s * b[2 * n + i];
+  }
+  free(b);
+  free(sel);
+  return rc;
+}
+
+static void trim_free(void *ud) {
+  trim *t = ud;
+  gr_field_free(t->g);
+  gr_field_free(t->d);
+  free(t);
+}
+
+gr_field *gr_domain_trim(gr_field *g, gr_field *d, double skin, gr_err *e) {
+  trim *t = malloc(sizeof *t);
+  if (!t) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
+  t->g = gr_field_ref(g);
+  t->d = gr_field_ref(d);
+  t->skin = skin > 0 ? skin : 0;
+  char desc[256];
+  snprintf(desc, sizeof desc, "trim(%.100s, %.100s, skin=%g)", gr_field_describe(g), gr_field_describe(d), t->skin);
+  gr_field *f = gr_field_callback(trim_eval, trim_grad, t, trim_free,
+                                  gr_field_threadsafe(g) && gr_field_threadsafe(d), desc);
+  if (!f) {
+    trim_free(t);
+    return gr_fail(e, GR_EMEM, "out of memory"), NULL;
+  }
+  return f;
+}

@@ -1,0 +1,40 @@
+/* domain.h: a design domain's field made a signed distance in mm (a primitive
+ * of the placement job, place.h).
+ *
+ * Takes: a domain field f (negative inside, any scale: an expression such as
+ * (x-5)^2+(y-5)^2-16 is fine), the band (mm) within which distances must be
+ * exact (the skin and the contour margin), and the cell edge L (mm, the scale
+ * of tolerances). Gives: a field whose value is the signed distance to the
+ * zero set of f (mm, the sign of f) within the band, so that skin depths and
+ * inside/outside tests are in millimetres whatever the expression's scale.
+ *
+ * How: the first-order estimate f/|grad f| filters the points; those below
+ * the band are projected onto f = 0 by iterating q <- p - ((f(q) + grad
+ * f(q).(p - q)) / |grad f(q)|^2) grad f(q) (Newton's step onto the surface
+ * and the move to p's foot on the tangent plane in one: at the fixed point
+ * f(q) = 0 and p - q is parallel to grad f(q)), all points of a batch
+ * together; the distance is |p - q| with the sign of f(p). Farther points
+ * keep the estimate (at least the band): only their sign matters. The
+ * gradient is the field's own (central differences for an expression). */
+#ifndef GR_DOMAIN_H
+#define GR_DOMAIN_H
+#include "field.h"
+
+/* The true-distance field of domain f (a new reference). A field that is a
+ * distance already (Lipschitz bound <= 1, e.g. an STL solid or a sphere) is
+ * returned as it is (a new reference). band > 0, L > 0 (mm). Errors of f
+ * (NaN, a point where it is not finite) are reported by evaluation with
+ * "domain" in the message. NULL and GR_EMEM in e when out of memory. */
+gr_field *gr_domain_distance(gr_field *f, double band, double L, gr_err *e);
+
+/* The part of a trimmed voxel: its lattice field g cut by the domain d
+ * (negative inside), with a solid skin of depth `skin` (mm, 0: none) along
+ * d's boundary: max(d, min(g, -d - skin)), or max(g, d) without a skin; g
+ * and d evaluated once per point (new references taken). NULL and GR_EMEM in
+ * e when out of memory. */
+gr_field *gr_domain_trim(gr_field *g, gr_field *d, double skin, gr_err *e);
+
+/* 1 if d is such a true-distance wrapper. */
+int gr_domain_is_distance(const gr_field *d);
+
+#endif

@@ -1,0 +1,62 @@
+/* test_domain.c: a domain field made a signed distance (domain.h), against
+ * the analytic distance to a cylinder written squared, batched over many
+ * points (inside and outside the band), a field that is a distance already
+ * kept as it is, and NaN from the domain reported as the domain's. */
+#include <math.h>
+#include <string.h>
+#include "domain.h"
+#include "check.h"
+
+TEST(cylinder_squared) {
+  gr_err e;
+  gr_err_clear(&e);
+  gr_field *f = gr_field_expr("100*((x-5)^2+(y-5)^2-16)", &e);
+  gr_field *d = gr_domain_distance(f, 1.5, 2, &e);
+  CHECK(d != NULL, "%s", e.msg);
+  enum { N = 300 };
+  double x[N], y[N], z[N], out[N];
+  for (int i = 0; i < N; i++) {
+    double r = 2.7 + 3.0 * i / (N - 1), a = 0.37 * i;
+    x[i] = 5 + r * cos(a), y[i] = 5 + r * sin(a), z[i] = 0.1 * i;
+  }
+  CHECK(gr_field_eval(d, N, x, y, z, out, &e) == GR_OK, "%s", e.msg);
+  int near = 0;
+  for (int i = 0; i < N; i++) {
+    double r = hypot(x[i] - 5, y[i] - 5), est = fabs(r * r - 16) / (2 * r);
+    CHECK((out[i] < 0) == (r < 4), "sign at r = %g", r);
+    if (est < 1.5) {
+      near++;
+      CHECK_NEAR(out[i], r - 4, 1e-9);
+    } else {
+      CHECK(fabs(out[i]) >= 1.5, "beyond the band: |%g| >= 1.5 at r = %g", out[i], r);
+    }
+  }
+  CHECK(near > 100 && near < N, "points in the band: %d", near);
+  gr_field_free(d);
+  gr_field_free(f);
+}
+
+TEST(distance_kept_nan_named) {
+  gr_err e;
+  gr_err_clear(&e);
+  gr_field *s = gr_field_constant(0);
+  gr_field_set_lipschitz(s, 1);
+  gr_field *d = gr_domain_distance(s, 1, 2, &e);
+  CHECK(d == s, "a field with Lipschitz bound 1 is kept");
+  gr_field_free(d);
+  gr_field_free(s);
+  gr_field *f = gr_field_expr("sqrt(x-1)-0.5", &e);
+  d = gr_domain_distance(f, 1, 2, &e);
+  double x = 0.5, y = 0, z = 0, v;
+  CHECK(gr_field_eval(d, 1, &x, &y, &z, &v, &e) != GR_OK, "NaN refused");
+  CHECK(strncmp(e.msg, "domain: ", 8) == 0, "message: %s", e.msg);
+  CHECK(gr_domain_distance(f, 0, 2, &e) == NULL && e.code == GR_EARG, "band 0 refused");
+  gr_field_free(d);
+  gr_field_free(f);
+}
+
+int main(void) {
+  RUN(cylinder_squared);
+  RUN(distance_kept_nan_named);
+  DONE();
+}
