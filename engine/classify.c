@@ -47,7 +47,7 @@ static int classify_domain(gr_job *j, gr_err *e) {
           y[n] = o[1] - grow + b * h;
           z[n] = o[2] - grow + c * h;
         }
-    if (gr_field_eval(j->domain, n, x, y, z, f, e)) return e->code;
+    if (gr_field_eval(j->domain, n, x, y, z, f, e)) return gr_err_prefix(e, "domain");
     double K = isfinite(K0) ? K0 : local_lipschitz(j->domain, n, x, y, z);
     int pos = 0, neg = 0;
     double half = h * sqrt(3.0) / 2;

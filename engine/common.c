@@ -89,3 +89,15 @@ double gr_now(void) {
   clock_gettime(CLOCK_MONOTONIC, &ts);
   return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
+
+int gr_err_prefix(gr_err *e, const char *what) {
+  if (!e) return GR_ENUM;
+  size_t n = strlen(what);
+  if (strncmp(e->msg, what, n) != 0) {
+    char m[sizeof e->msg];
+    memcpy(m, e->msg, sizeof m);
+    int keep = (int)(sizeof e->msg) - (int)n - 3;
+    snprintf(e->msg, sizeof e->msg, "%s: %.*s", what, keep > 0 ? keep : 0, m);
+  }
+  return e->code ? e->code : GR_ENUM;
+}

@@ -26,6 +26,9 @@ typedef struct gr_err {
 /* Fill e (may be NULL) and return code. */
 int gr_fail(gr_err *e, int code, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
+/* Prefix e's message with "what: " (unless it starts with what already);
+ * returns e's code. */
+int gr_err_prefix(gr_err *e, const char *what);
 static inline void gr_err_clear(gr_err *e) { if (e) { e->code = GR_OK; e->msg[0] = 0; } }
 
 /* Length of (dx, dy): sqrt without hypot's overflow care (coordinates are

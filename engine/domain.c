@@ -16,15 +16,7 @@ typedef struct dom {
 } dom;
 
 /* An error of the domain's own field, said to come from the domain. */
-static int dom_fail(gr_err *e) {
-  if (e && strncmp(e->msg, "domain", 6) != 0) {
-    char m[sizeof e->msg];
-    memcpy(m, e->msg, sizeof m);
-    m[sizeof m - 9] = 0;
-    snprintf(e->msg, sizeof e->msg, "domain: %.500s", m);
-  }
-  return e ? e->code : GR_ENUM;
-}
+static int dom_fail(gr_err *e) { return gr_err_prefix(e, "domain"); }
 
 /* Value and gradient of f at n points, the gradient by forward differences
  * (3 evaluations more, where central differences take 6; step
@@ -73,8 +65,38 @@ static void work_free(dom_work *w) {
  * |p - q| into out[] for those that converge; the others keep out[] (the
  * first-order estimate). Uses w's value/gradient arrays as scratch, packed
  * in the order of the active points. */
+/* Converged feet waiting for the sign check (crossing). */
+typedef struct dom_feet {
+  size_t n, *i;
+  double *d, *q; /* distance; foot xyz */
+} dom_feet;
+
+/* A foot counts only where the domain's sign changes across it: a zero of f
+ * that is not a boundary (f <= 0 on both sides, as on the shared face of two
+ * boxes joined by min) is not a closest point of the domain; those points keep
+ * the first-order estimate. Probes each foot a small step beyond it, away
+ * from p. */
+static int check_feet(const dom *d, const double *x, const double *y, const double *z, const dom_feet *c,
+                      dom_work *w, double *out, gr_err *e) {
+  double step = 1e4 * d->tol;
+  for (size_t k = 0; k < c->n; k++) {
+    size_t i = c->i[k];
+    const double *q = c->q + 3 * k;
+    double r = c->d[k];
+    w->qx[k] = q[0] + step * (q[0] - x[i]) / r;
+    w->qy[k] = q[1] + step * (q[1] - y[i]) / r;
+    w->qz[k] = q[2] + step * (q[2] - z[i]) / r;
+  }
+  if (c->n && gr_field_eval(d->f, c->n, w->qx, w->qy, w->qz, w->v, e)) return dom_fail(e);
+  for (size_t k = 0; k < c->n; k++) {
+    size_t i = c->i[k];
+    if (w->gx[i] < 0 ? w->v[k] > 0 : w->v[k] < 0) out[i] = c->d[k]; /* gx: the sign of f(p), see dom_eval */
+  }
+  return GR_OK;
+}
+
 static int project(const dom *d, const double *x, const double *y, const double *z, dom_work *w, size_t m,
-                   double *out, gr_err *e) {
+                   double *out, dom_feet *c, gr_err *e) {
   for (int it = 0; it < DOM_ITERS && m > 0; it++) {
     /* the active feet are packed at the front of qx, qy, qz */
     /* round 0 starts at q = p, whose value and gradient the caller packed */
@@ -92,7 +114,13 @@ static int project(const dom *d, const double *x, const double *y, const double 
       double dist = fabs(lam) * sqrt(g2);
       if (!isfinite(step) || dist > 4 * d->band) continue; /* ran off: the estimate stands */
       if (step < d->tol && fabs(w->v[k]) < d->tol * sqrt(g2)) {
-        out[i] = dist;
+        if (dist > 0) { /* checked below: a foot where f changes sign */
+          c->i[c->n] = i, c->d[c->n] = dist;
+          c->q[3 * c->n] = q[0], c->q[3 * c->n + 1] = q[1], c->q[3 * c->n + 2] = q[2];
+          c->n++;
+        } else {
+          out[i] = 0;
+        }
         continue;
       }
       w->act[keep] = i;
@@ -126,13 +154,24 @@ static int dom_eval(void *ud, size_t n, const double *x, const double *y, const 
     double est = g > 0 ? fabs(v) / g : DOM_FAR;
     out[i] = fmin(est, DOM_FAR);
     if (v == 0) { out[i] = 0; continue; }
+    /* |grad f| = 1: f is already a distance near p (planes joined by min and
+     * max, a sphere written with sqrt): kept as it is. Projecting along such a
+     * field's gradient would land on box corners and inner faces. */
+    if (fabs(g - 1) < 1e-6) { out[i] = fabs(v); continue; }
     if (est >= d->band) { out[i] = fmax(out[i], d->band); continue; }
     w.act[m] = i; /* packed in place: m <= i, entries below i are read already */
     w.qx[m] = x[i], w.qy[m] = y[i], w.qz[m] = z[i];
     w.v[m] = v, w.gx[m] = w.gx[i], w.gy[m] = w.gy[i], w.gz[m] = w.gz[i];
     m++;
   }
-  rc = project(d, x, y, z, &w, m, out, e);
+  dom_feet c = {0, malloc((n ? n : 1) * sizeof *c.i), malloc((n ? n : 1) * 4 * sizeof *c.d), NULL};
+  if (!c.i || !c.d) rc = gr_fail(e, GR_EMEM, "out of memory");
+  c.q = c.d ? c.d + n : NULL;
+  if (rc == GR_OK) rc = project(d, x, y, z, &w, m, out, &c, e);
+  for (size_t i = 0; i < n; i++) w.gx[i] = sg[i]; /* the sign of f(p) for the check */
+  if (rc == GR_OK) rc = check_feet(d, x, y, z, &c, &w, out, e);
+  free(c.i);
+  free(c.d);
   for (size_t i = 0; i < n; i++) out[i] *= sg[i];
   free(sg);
   work_free(&w);

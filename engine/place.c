@@ -13,7 +13,6 @@
  *
  * The job's state is job.h; doc/architecture.md draws the map. */
 #include "place.h"
-#include "domain.h"
 #include <math.h>
 #include <pthread.h>
 #include <stdlib.h>
@@ -188,12 +187,10 @@ int gr_job_set_voxel(gr_job *j, int i, int jj, int k, int spec, int laser,
 
 int gr_job_set_domain(gr_job *j, gr_field *domain, double skin, gr_err *e) {
   if (!(skin >= 0) || !isfinite(skin)) return gr_fail(e, GR_EARG, "skin must be >= 0 mm, got %g", skin);
-  /* the domain as a signed distance in mm near its boundary (domain.h) */
-  double band = 2 * skin + j->o.beam_offset + (j->o.contours + 2) * j->o.hatch + 4 * j->o.slice_cell + 0.05 * j->o.cell;
-  gr_field *d = domain ? gr_domain_distance(domain, band, j->o.cell, e) : NULL;
-  if (domain && !d) return e->code;
+  /* used as given: a skin in mm needs a distance (an STL domain, or
+   * gradus.field.distance of a smooth expression, domain.h) */
   gr_field_free(j->domain);
-  j->domain = d;
+  j->domain = domain ? gr_field_ref(domain) : NULL;
   j->skin = skin;
   return GR_OK;
 }
