@@ -96,7 +96,7 @@ static int box_sides(fs_work *w, int bi, int bj) {
         if (t > a && t < b) w->bp[nb++] = t;
       }
     }
-    qsort(w->bp, nb, sizeof *w->bp, dbl_cmp);
+    if (nb > 1) qsort(w->bp, nb, sizeof *w->bp, dbl_cmp);
     for (size_t k = 0; k + 1 < nb; k++) {
       double p = w->bp[k], q = w->bp[k + 1], mid = 0.5 * (p + q);
       if (!(q > p)) continue;
@@ -139,7 +139,7 @@ static int line_edges(fs_work *w) {
     if (gr_grow(&w->bp, &w->capbp, 2 * w->niv + 1, sizeof *w->bp)) return GR_EMEM;
     for (size_t k = 0; k < w->niv; k++)
       if (w->iv[k].line == line) { w->bp[nb++] = w->iv[k].a; w->bp[nb++] = w->iv[k].b; }
-    qsort(w->bp, nb, sizeof *w->bp, dbl_cmp);
+    if (nb > 1) qsort(w->bp, nb, sizeof *w->bp, dbl_cmp);
     double fix = w->X[line & 3];
     for (size_t k = 0; k + 1 < nb; k++) {
       double p = w->bp[k], q = w->bp[k + 1], mid = 0.5 * (p + q);
@@ -253,7 +253,7 @@ static long face_crossings(const gr_rings *r, int vert, double pos, double L, do
       (*c)[n++] = t;
     }
   }
-  qsort(*c, (size_t)n, sizeof **c, dbl_cmp);
+  if (n > 1) qsort(*c, (size_t)n, sizeof **c, dbl_cmp);
   return n;
 }
 
