@@ -13,6 +13,7 @@
  * and end at those very coordinates, so they chain into closed rings by
  * exact matching of end points. */
 #include "facestep.h"
+#include "expr.h"
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -279,6 +280,18 @@ static int face_differs(const gr_rings *a, const gr_rings *b, int side, double L
   return r;
 }
 
+/* 1 when voxels v and n cannot step at their shared face: the same spec,
+ * neither cut by the domain, and a thickness that reads neither u nor v
+ * (x, y, z are global, w is the same in a row: the solid is continuous
+ * across the face). Such neighbours are not checked. */
+static int continuous_face(const gr_job *j, int v, int n) {
+  int s = j->vspec[v];
+  if (s < 0 || j->vspec[n] != s || j->vstate[v] == 2 || j->vstate[n] == 2) return 0;
+  if (j->specs[s].target) return 1; /* a field of x, y, z */
+  const gr_expr *t = j->texpr[s], *in = j->iexpr[s];
+  return !gr_expr_uses(t, 3) && !gr_expr_uses(t, 4) && !(in && (gr_expr_uses(in, 3) || gr_expr_uses(in, 4)));
+}
+
 int gr_fstep_voxel(const gr_job *j, int v, int jl, gr_tlayer *out, int *done, gr_err *e) {
   *done = 0;
   int i, jj, k, nx = j->o.n[0], ny = j->o.n[1];
@@ -296,7 +309,7 @@ int gr_fstep_voxel(const gr_job *j, int v, int jl, gr_tlayer *out, int *done, gr
       if (tl && !tl->section) /* templates keep their sections (build.c) */
         return gr_fail(e, GR_EARG, "internal: the template of voxel %d has no section on row layer %d", v + di + dj * nx, jl);
       nb[3 * (dj + 1) + di + 1] = tl ? tl->section : NULL;
-      if (tl && (di == 0) != (dj == 0) && !differ) {
+      if (tl && (di == 0) != (dj == 0) && !differ && !continuous_face(j, v, v + di + dj * nx)) {
         int side = di < 0 ? 0 : di > 0 ? 1 : dj < 0 ? 2 : 3;
         /* both ways: the two voxels must agree on whether the face steps */
         int r = face_differs(own->section, tl->section, side, j->o.cell, h);
