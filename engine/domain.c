@@ -154,6 +154,9 @@ static int dom_eval(void *ud, size_t n, const double *x, const double *y, const 
     double est = g > 0 ? fabs(v) / g : DOM_FAR;
     out[i] = fmin(est, DOM_FAR);
     if (v == 0) { out[i] = 0; continue; }
+    /* no gradient: a crease of min/max (two planes tie and the one-sided
+     * differences cancel) or a critical point: |f| (a distance on creases) */
+    if (!(g > 0)) { out[i] = fabs(v); continue; }
     /* |grad f| = 1: f is already a distance near p (planes joined by min and
      * max, a sphere written with sqrt): kept as it is. Projecting along such a
      * field's gradient would land on box corners and inner faces. */
