@@ -64,6 +64,7 @@ M.PARAMS = {
   { "min_length", 0.0, { unit = "mm", min = 0, max = 10, help = "hatch vectors shorter than this are dropped" } },
   { "domain", "", { allow = { userdata = true }, help = "design domain: an STL file of the part or an expression negative inside" } },
   { "skin", 0.0, { unit = "mm", min = 0, max = 10, help = "solid skin depth along the domain's boundary" } },
+  { "domain_distance", false, { help = "make an expression domain a signed distance in mm (smooth expressions), so that skin is in mm whatever its scale" } },
   { "faces", true, { help = "contour the lattice where the box of cells cuts it" } },
   { "regions", "", { help = "build styles per region (skin, thin, downskin, upskin): a process profile with regions:, or default (Ti-6Al-4V); empty: none" } },
   { "qualify", false, { allow = FN, help = "verify every template built and qualify it (or a Lua rule)" } },
@@ -155,8 +156,12 @@ end
 -- The design domain p.domain: a field, an expression, or the path of a
 -- closed STL mesh (the part: its signed distance, gradus.mesh.solid), which
 -- must overlap the box of cells; nil or "": none.
-local function domain_of(d, origin, cells, L)
+local function domain_of(d, origin, cells, L, p)
   if d == nil or d == "" then return nil end
+  if p and p.domain_distance and type(d) == "string" and not d:lower():match("%.stl$") then
+    -- gradus.field.distance: closest points on the zero set within the band, for smooth expressions
+    return gradus.field.distance(gradus.field.expr(d), { band = 2 * p.skin + 1, cell = L })
+  end
   if type(d) == "string" and d:lower():match("%.stl$") then
     local ok, m = pcall(gradus.mesh.read, d)
     local mesh = m
@@ -189,7 +194,7 @@ local function run(p, out)
   p = checked(p)
   local box = require("gradus.part").box(p)
   local cells, origin = box.cells, p.origin
-  local domain = box.domain(domain_of(p.domain, origin, cells, p.cell))
+  local domain = box.domain(domain_of(p.domain, origin, cells, p.cell, p))
   local machine
   if p.machine ~= "" then
     machine = lasers.load(p.machine)

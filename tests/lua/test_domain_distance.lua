@@ -78,8 +78,9 @@ end)
 -- The skin band alone: a P network at level -2.9 is small blobs at the cell
 -- corners (z = 0, 2): the layer at z = 0.98 holds no lattice, so its section
 -- is the annulus R - S <= r <= R of the skin. Returns the layer and stats.
-local function ring(domain)
+local function ring(domain, as_dist)
   local p = lattice.params()
+  p.domain_distance = as_dist or false
   p.surface, p.kind, p.level, p.thickness = "primitive", "network", -2.9, "0.05"
   p.cells, p.kb, p.layers, p.pictures, p.hatch = "5,5,1", "off", "25:25", "25", D
   p.domain, p.skin = domain, S
@@ -135,6 +136,9 @@ t.test("skin of a cylinder domain written squared (made a distance) or as a dist
   local l2 = ring(DIST)
   local h2 = check_ring("distance", l2, 1e-3)
   t.near(h1, h2, 1e-6 * h2, "hatch length of both forms")
+  local l3 = ring(SQUARED, true) -- -D domain_distance=true does the same from the command line
+  local h3 = check_ring("squared, domain_distance", l3, 1e-3)
+  t.near(h3, h1, 1e-6 * h1, "hatch length with domain_distance")
   t.eq(st1.trimmed_voxels, 24, "the centre voxel (corners 2.6 mm inside) is an ordinary voxel")
 end)
 
