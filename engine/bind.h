@@ -30,6 +30,9 @@
 
 /* Raise a Lua error with e->msg (never returns). */
 int gr_lua_error(lua_State *L, const gr_err *e);
+/* t[k] = v for the table on top of the stack. */
+static inline void gr_lua_setnum(lua_State *L, const char *k, double v) { lua_pushnumber(L, v); lua_setfield(L, -2, k); }
+static inline void gr_lua_setint(lua_State *L, const char *k, lua_Integer v) { lua_pushinteger(L, v); lua_setfield(L, -2, k); }
 
 /* Option-table readers: idx is the table (may be absent/nil: default). */
 double gr_opt_number(lua_State *L, int idx, const char *key, double def);

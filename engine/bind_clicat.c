@@ -24,14 +24,10 @@ static int l_cat(lua_State *L) {
   gr_err_clear(&e);
   if (gr_cli_cat(parts, n, out, &info, &e)) return gr_lua_error(L, &e);
   lua_createtable(L, 0, 4);
-  lua_pushinteger(L, info.layers);
-  lua_setfield(L, -2, "layers");
-  lua_pushinteger(L, info.first);
-  lua_setfield(L, -2, "first");
-  lua_pushinteger(L, info.last);
-  lua_setfield(L, -2, "last");
-  lua_pushnumber(L, info.layer_mm);
-  lua_setfield(L, -2, "layer_mm");
+  gr_lua_setint(L, "layers", info.layers);
+  gr_lua_setint(L, "first", info.first);
+  gr_lua_setint(L, "last", info.last);
+  gr_lua_setnum(L, "layer_mm", info.layer_mm);
   return 1;
 }
 
@@ -99,16 +95,11 @@ static int l_plate_part(lua_State *L) {
   gr_plate_part_info in;
   gr_plate_part(p, part_index(L, p, 2), &in);
   lua_createtable(L, 0, 8);
-  lua_pushinteger(L, in.layers);
-  lua_setfield(L, -2, "layers");
-  lua_pushinteger(L, in.lasers);
-  lua_setfield(L, -2, "lasers");
-  lua_pushnumber(L, in.zlo);
-  lua_setfield(L, -2, "zlo");
-  lua_pushnumber(L, in.zhi);
-  lua_setfield(L, -2, "zhi");
-  lua_pushnumber(L, in.length);
-  lua_setfield(L, -2, "length");
+  gr_lua_setint(L, "layers", in.layers);
+  gr_lua_setint(L, "lasers", in.lasers);
+  gr_lua_setnum(L, "zlo", in.zlo);
+  gr_lua_setnum(L, "zhi", in.zhi);
+  gr_lua_setnum(L, "length", in.length);
   set_pair(L, "centre", in.centre[0], in.centre[1]);
   set_pair(L, "lo", in.lo[0], in.lo[1]);
   set_pair(L, "hi", in.hi[0], in.hi[1]);
@@ -183,12 +174,9 @@ static int l_plate_write(lua_State *L) {
   gr_err_clear(&e);
   if (gr_plate_write(p, dest, &o, &in, &e)) return gr_lua_error(L, &e);
   lua_createtable(L, 0, 6);
-  lua_pushinteger(L, in.layers);
-  lua_setfield(L, -2, "layers");
-  lua_pushinteger(L, in.blocks);
-  lua_setfield(L, -2, "blocks");
-  lua_pushnumber(L, in.length);
-  lua_setfield(L, -2, "length");
+  gr_lua_setint(L, "layers", in.layers);
+  gr_lua_setint(L, "blocks", in.blocks);
+  gr_lua_setnum(L, "length", in.length);
   lua_pushstring(L, in.form);
   lua_setfield(L, -2, "form");
   for (int b = 0; b < 2; b++) {

@@ -386,11 +386,6 @@ static void push_values(lua_State *L, const double *v, size_t cnt) {
   }
 }
 
-static void set_num(lua_State *L, const char *k, double v) {
-  lua_pushnumber(L, v);
-  lua_setfield(L, -2, k);
-}
-
 /* sample{lo={x,y,z}, hi={x,y,z}, n={nx,ny,nz}} */
 static int m_sample(lua_State *L) {
   gr_field *f = gr_check_field(L, 1);
@@ -412,8 +407,8 @@ static int m_sample(lua_State *L) {
   lua_pushinteger(L, g->nx); lua_setfield(L, -2, "nx");
   lua_pushinteger(L, g->ny); lua_setfield(L, -2, "ny");
   lua_pushinteger(L, g->nz); lua_setfield(L, -2, "nz");
-  set_num(L, "x0", g->x0); set_num(L, "y0", g->y0); set_num(L, "z0", g->z0);
-  set_num(L, "hx", g->hx); set_num(L, "hy", g->hy); set_num(L, "hz", g->hz);
+  gr_lua_setnum(L, "x0", g->x0); gr_lua_setnum(L, "y0", g->y0); gr_lua_setnum(L, "z0", g->z0);
+  gr_lua_setnum(L, "hx", g->hx); gr_lua_setnum(L, "hy", g->hy); gr_lua_setnum(L, "hz", g->hz);
   gr_grid3_free(b->g3);
   b->g3 = NULL;
   return 1;
@@ -439,8 +434,8 @@ static int m_sample2(lua_State *L) {
   push_values(L, g->v, (size_t)g->nx * g->ny);
   lua_pushinteger(L, g->nx); lua_setfield(L, -2, "nx");
   lua_pushinteger(L, g->ny); lua_setfield(L, -2, "ny");
-  set_num(L, "x0", g->x0); set_num(L, "y0", g->y0); set_num(L, "z", g->z);
-  set_num(L, "hx", g->hx); set_num(L, "hy", g->hy);
+  gr_lua_setnum(L, "x0", g->x0); gr_lua_setnum(L, "y0", g->y0); gr_lua_setnum(L, "z", g->z);
+  gr_lua_setnum(L, "hx", g->hx); gr_lua_setnum(L, "hy", g->hy);
   gr_grid2_free(b->g2);
   b->g2 = NULL;
   return 1;

@@ -13,8 +13,6 @@
 
 static const char *const KINDS[GR_NKINDS] = {"contour", "hatch", "edge"};
 
-static void set_num(lua_State *L, const char *k, double v) { lua_pushnumber(L, v); lua_setfield(L, -2, k); }
-static void set_int(lua_State *L, const char *k, lua_Integer v) { lua_pushinteger(L, v); lua_setfield(L, -2, k); }
 static void set_str(lua_State *L, const char *k, const char *v) { lua_pushstring(L, v); lua_setfield(L, -2, k); }
 
 /* ---- the OVF writer of job:run ---- */
@@ -105,27 +103,27 @@ static int info_layer(void *ud, const gr_layer *l, const int *style, const gr_cl
 
 static void push_style(lua_State *L, const gr_cli_style *s, const infoctx *c, int i) {
   lua_newtable(L);
-  set_int(L, "id", s->id);
+  gr_lua_setint(L, "id", s->id);
   set_str(L, "label", s->name);
-  set_int(L, "laser", c->laser[i] + 1);
+  gr_lua_setint(L, "laser", c->laser[i] + 1);
   set_str(L, "kind", KINDS[c->kind[i] >= 0 && c->kind[i] < GR_NKINDS ? c->kind[i] : GR_EDGE]);
-  if (!isnan(s->power)) set_num(L, "power", s->power);
-  if (!isnan(s->speed)) set_num(L, "speed", s->speed);
-  if (!isnan(s->focus)) set_num(L, "focus", s->focus);
-  if (!isnan(s->jump_speed)) set_num(L, "jump_speed", s->jump_speed);
-  set_int(L, "blocks", c->blocks[i]);
-  set_int(L, "vectors", c->vectors[i]);
-  set_num(L, "length_mm", c->length[i]);
+  if (!isnan(s->power)) gr_lua_setnum(L, "power", s->power);
+  if (!isnan(s->speed)) gr_lua_setnum(L, "speed", s->speed);
+  if (!isnan(s->focus)) gr_lua_setnum(L, "focus", s->focus);
+  if (!isnan(s->jump_speed)) gr_lua_setnum(L, "jump_speed", s->jump_speed);
+  gr_lua_setint(L, "blocks", c->blocks[i]);
+  gr_lua_setint(L, "vectors", c->vectors[i]);
+  gr_lua_setnum(L, "length_mm", c->length[i]);
 }
 
 static void push_info(lua_State *L, const char *path, const gr_cli_header *h, const infoctx *c) {
   lua_newtable(L);
   set_str(L, "file", path);
   set_str(L, "format", h->ovf ? "ovf" : !h->binary ? "ascii" : h->short_cmds ? "binary-short" : "binary");
-  set_num(L, "units", h->units);
-  set_int(L, "layers", c->layers);
-  set_int(L, "layers_declared", h->layers);
-  set_int(L, "empty_layers", c->empty);
+  gr_lua_setnum(L, "units", h->units);
+  gr_lua_setint(L, "layers", c->layers);
+  gr_lua_setint(L, "layers_declared", h->layers);
+  gr_lua_setint(L, "empty_layers", c->empty);
   lua_newtable(L);
   for (int a = 0; a < 6; a++) {
     lua_pushnumber(L, a < 3 ? h->lo[a] : h->hi[a - 3]);
@@ -138,8 +136,8 @@ static void push_info(lua_State *L, const char *path, const gr_cli_header *h, co
     for (int a = 0; a < 6; a++) { lua_pushnumber(L, isfinite(v[a]) ? v[a] : 0); lua_rawseti(L, -2, a + 1); }
     lua_setfield(L, -2, "bounds");
     lua_newtable(L);
-    set_num(L, "min", c->zmin);
-    set_num(L, "max", c->zmax);
+    gr_lua_setnum(L, "min", c->zmin);
+    gr_lua_setnum(L, "max", c->zmax);
     lua_setfield(L, -2, "z");
   }
   if (h->nlabels) {
@@ -162,14 +160,14 @@ static void push_info(lua_State *L, const char *path, const gr_cli_header *h, co
   lua_newtable(L);
   for (int la = 0; la < c->nlasers; la++) {
     lua_newtable(L);
-    set_int(L, "laser", la + 1);
-    set_int(L, "blocks", c->lblocks[la]);
-    set_int(L, "vectors", c->lvectors[la]);
-    set_num(L, "length_mm", c->llength[la]);
+    gr_lua_setint(L, "laser", la + 1);
+    gr_lua_setint(L, "blocks", c->lblocks[la]);
+    gr_lua_setint(L, "vectors", c->lvectors[la]);
+    gr_lua_setnum(L, "length_mm", c->llength[la]);
     lua_rawseti(L, -2, la + 1);
   }
   lua_setfield(L, -2, "lasers");
-  set_num(L, "length_mm", total);
+  gr_lua_setnum(L, "length_mm", total);
 }
 
 int gr_l_info(lua_State *L) {
@@ -224,10 +222,10 @@ static int l_plane(lua_State *L) {
   for (size_t b = 0; b < l->nb; b++) {
     const gr_cli_style *s = &h->style[style[b]];
     lua_createtable(L, 0, 4);
-    set_int(L, "key", s->id);
+    gr_lua_setint(L, "key", s->id);
     set_str(L, "name", s->name);
-    if (!isnan(s->power)) set_num(L, "power", s->power);
-    if (!isnan(s->speed)) set_num(L, "speed", s->speed);
+    if (!isnan(s->power)) gr_lua_setnum(L, "power", s->power);
+    if (!isnan(s->speed)) gr_lua_setnum(L, "speed", s->speed);
     lua_rawseti(L, -2, (lua_Integer)b + 1);
   }
   free(style);

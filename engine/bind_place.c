@@ -306,7 +306,6 @@ static void progress(void *ud, const char *stage, long done, long total) {
   fflush(stderr);
 }
 
-static void set_num(lua_State *L, const char *k, double v) { lua_pushnumber(L, v); lua_setfield(L, -2, k); }
 
 /* The recipe's qualification rule: opts.qualify(quality) -> ok [, reason],
  * quality = {pore=, overmelt=, max_dev= (mm), layers=, thin_walls=, key=}.
@@ -319,7 +318,7 @@ static int qualify_cb(void *ud, const char *key, const double q[4], long thin, c
   lua_createtable(L, 0, 6);
   static const char *const names[4] = {"pore", "overmelt", "max_dev", "layers"};
   for (int i = 0; i < 4; i++)
-    if (!isnan(q[i])) set_num(L, names[i], q[i]);
+    if (!isnan(q[i])) gr_lua_setnum(L, names[i], q[i]);
   lua_pushinteger(L, thin);
   lua_setfield(L, -2, "thin_walls");
   lua_pushstring(L, key);
@@ -334,29 +333,27 @@ static int qualify_cb(void *ud, const char *key, const double q[4], long thin, c
   lua_pop(L, 2);
   return ok;
 }
-static void set_int(lua_State *L, const char *k, long long v) { lua_pushinteger(L, v); lua_setfield(L, -2, k); }
-
 static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) {
   const gr_job_stats *st = gr_job_get_stats(j);
   lua_newtable(L);
-  set_int(L, "layers", st->layers);
-  set_int(L, "layers_total", gr_job_layers(j));
-  set_int(L, "voxels", st->voxels);
-  set_int(L, "trimmed_voxels", st->trimmed);
+  gr_lua_setint(L, "layers", st->layers);
+  gr_lua_setint(L, "layers_total", gr_job_layers(j));
+  gr_lua_setint(L, "voxels", st->voxels);
+  gr_lua_setint(L, "trimmed_voxels", st->trimmed);
   lua_newtable(L);
-  set_int(L, "unique", st->classes);
-  set_int(L, "built", st->built);
-  set_int(L, "reused", st->reused);
-  set_int(L, "corrupt_rebuilt", st->kb_corrupt);
-  set_int(L, "stored", st->kb_stored);
-  set_int(L, "not_stored", st->kb_not_stored);
-  set_int(L, "held_max", st->held_max);
+  gr_lua_setint(L, "unique", st->classes);
+  gr_lua_setint(L, "built", st->built);
+  gr_lua_setint(L, "reused", st->reused);
+  gr_lua_setint(L, "corrupt_rebuilt", st->kb_corrupt);
+  gr_lua_setint(L, "stored", st->kb_stored);
+  gr_lua_setint(L, "not_stored", st->kb_not_stored);
+  gr_lua_setint(L, "held_max", st->held_max);
   /* share of the unique templates taken from the knowledge base (0 when none
    * was reused), and voxels per template (how much the job repeats itself) */
-  set_num(L, "reuse_ratio", st->classes ? (double)st->reused / st->classes : 0);
-  set_num(L, "voxels_per_template", st->classes ? (double)st->voxels / st->classes : 0);
-  set_int(L, "verified", st->verified);
-  set_int(L, "unqualified", st->unqualified);
+  gr_lua_setnum(L, "reuse_ratio", st->classes ? (double)st->reused / st->classes : 0);
+  gr_lua_setnum(L, "voxels_per_template", st->classes ? (double)st->voxels / st->classes : 0);
+  gr_lua_setint(L, "verified", st->verified);
+  gr_lua_setint(L, "unqualified", st->unqualified);
   if (st->unqualified_why[0]) {
     lua_pushstring(L, st->unqualified_why);
     lua_setfield(L, -2, "unqualified_reason");
@@ -366,14 +363,14 @@ static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) 
   static const char *const kinds[GR_NKINDS] = {"contour", "hatch", "edge"};
   for (int k = 0; k < GR_NKINDS; k++) {
     lua_newtable(L);
-    set_int(L, "count", (long long)st->vectors[k]);
-    set_num(L, "length", st->length[k]);
+    gr_lua_setint(L, "count", (long long)st->vectors[k]);
+    gr_lua_setnum(L, "length", st->length[k]);
     lua_setfield(L, -2, kinds[k]);
   }
   lua_setfield(L, -2, "vectors");
   lua_newtable(L);
-  set_int(L, "count", (long long)st->jumps);
-  set_num(L, "length", st->jump_length);
+  gr_lua_setint(L, "count", (long long)st->jumps);
+  gr_lua_setnum(L, "length", st->jump_length);
   lua_setfield(L, -2, "jumps");
   lua_newtable(L);
   const gr_job_opts *o = gr_job_options(j);
@@ -381,54 +378,54 @@ static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) 
   for (int la = 0; la < o->nlasers; la++) total += st->laser_time[la];
   for (int la = 0; la < o->nlasers; la++) {
     lua_newtable(L);
-    set_num(L, "length", st->laser_length[la]);
-    set_num(L, "scan_time_s", st->laser_time[la]);
-    set_num(L, "share", total > 0 ? st->laser_time[la] / total : 0);
+    gr_lua_setnum(L, "length", st->laser_length[la]);
+    gr_lua_setnum(L, "scan_time_s", st->laser_time[la]);
+    gr_lua_setnum(L, "share", total > 0 ? st->laser_time[la] / total : 0);
     lua_rawseti(L, -2, la + 1);
   }
   lua_setfield(L, -2, "lasers");
-  set_num(L, "build_time_s", st->build_time);
-  set_num(L, "balanced_time_s", st->balanced_time);
+  gr_lua_setnum(L, "build_time_s", st->build_time);
+  gr_lua_setnum(L, "balanced_time_s", st->balanced_time);
   /* balance of the lasers' work (recoating, equal for all, left out) */
   double busy = st->build_time - st->recoat_time;
-  set_num(L, "balance_efficiency", busy > 0 ? (st->balanced_time - st->recoat_time) / busy : 1);
-  set_int(L, "thin_walls", st->thin_walls);
+  gr_lua_setnum(L, "balance_efficiency", busy > 0 ? (st->balanced_time - st->recoat_time) / busy : 1);
+  gr_lua_setint(L, "thin_walls", st->thin_walls);
   gr_regions_push_stats(L, j, st);
   if (st->layers > 0)
-    set_num(L, "relative_density", st->solid_area / (st->layers * o->n[0] * (double)o->n[1] * o->cell * o->cell));
-  set_num(L, "solid_volume_mm3", st->solid_area * o->layer);
-  set_int(L, "dropped_short_vectors", st->dropped);
-  set_int(L, "split_loops", st->split_loops);
-  set_num(L, "recoat_time_s", st->recoat_time);
+    gr_lua_setnum(L, "relative_density", st->solid_area / (st->layers * o->n[0] * (double)o->n[1] * o->cell * o->cell));
+  gr_lua_setnum(L, "solid_volume_mm3", st->solid_area * o->layer);
+  gr_lua_setint(L, "dropped_short_vectors", st->dropped);
+  gr_lua_setint(L, "split_loops", st->split_loops);
+  gr_lua_setnum(L, "recoat_time_s", st->recoat_time);
   double lt = 0; /* all lasers' time: marking plus jumps and delays */
   for (int la = 0; la < GR_MAX_LASERS; la++) lt += st->laser_time[la];
-  set_num(L, "scan_time_s", lt - st->jump_time);
-  set_num(L, "jump_time_s", st->jump_time);
+  gr_lua_setnum(L, "scan_time_s", lt - st->jump_time);
+  gr_lua_setnum(L, "jump_time_s", st->jump_time);
   lua_newtable(L);
-  set_int(L, "dropped_short", st->short_loops);
-  set_num(L, "dropped_short_length", st->short_length);
+  gr_lua_setint(L, "dropped_short", st->short_loops);
+  gr_lua_setnum(L, "dropped_short_length", st->short_length);
   lua_setfield(L, -2, "contours");
   lua_newtable(L);
-  set_num(L, "classify", st->seconds[0]);
-  set_num(L, "templates", st->seconds[1]);
-  set_num(L, "layers", st->seconds[2]);
-  set_num(L, "write", s->t_write);
-  set_num(L, "total", st->seconds[3]);
+  gr_lua_setnum(L, "classify", st->seconds[0]);
+  gr_lua_setnum(L, "templates", st->seconds[1]);
+  gr_lua_setnum(L, "layers", st->seconds[2]);
+  gr_lua_setnum(L, "write", s->t_write);
+  gr_lua_setnum(L, "total", st->seconds[3]);
   lua_setfield(L, -2, "seconds");
-  set_num(L, "units", units);
+  gr_lua_setnum(L, "units", units);
   /* the values the job used where the caller left a default ("auto") */
   lua_newtable(L);
-  set_num(L, "beam_offset", o->beam_offset);
-  set_num(L, "slice_cell", o->slice_cell);
-  set_num(L, "track", o->track);
-  set_int(L, "threads", o->threads);
+  gr_lua_setnum(L, "beam_offset", o->beam_offset);
+  gr_lua_setnum(L, "slice_cell", o->slice_cell);
+  gr_lua_setnum(L, "track", o->track);
+  gr_lua_setint(L, "threads", o->threads);
   lua_setfield(L, -2, "effective");
   /* peak resident memory from /proc */
   FILE *f = fopen("/proc/self/status", "r");
   if (f) {
     char line[256];
     while (fgets(line, sizeof line, f))
-      if (!strncmp(line, "VmHWM:", 6)) set_num(L, "peak_rss_mb", atof(line + 6) / 1024.0);
+      if (!strncmp(line, "VmHWM:", 6)) gr_lua_setnum(L, "peak_rss_mb", atof(line + 6) / 1024.0);
     fclose(f);
   }
   const char *w = gr_job_warning(j);
@@ -650,14 +647,14 @@ static void push_entry(lua_State *L, const char *key, const char *sig, size_t by
   lua_setfield(L, -2, "signature");
   lua_pushboolean(L, gr_kb_stale(sig));
   lua_setfield(L, -2, "stale");
-  set_int(L, "bytes", (long long)bytes);
+  gr_lua_setint(L, "bytes", (long long)bytes);
   lua_pushboolean(L, qualified);
   lua_setfield(L, -2, "qualified");
-  set_int(L, "created", created);
+  gr_lua_setint(L, "created", created);
   lua_newtable(L);
   static const char *const qn[4] = {"pore_max", "overmelt_max", "contour_dev_max", "layers_verified"};
   for (int i = 0; i < 4; i++)
-    if (!isnan(quality[i])) set_num(L, qn[i], quality[i]);
+    if (!isnan(quality[i])) gr_lua_setnum(L, qn[i], quality[i]);
   lua_setfield(L, -2, "quality");
 }
 
@@ -712,15 +709,15 @@ static int l_kb_show(lua_State *L) {
   if (rc) return gr_lua_error(L, &e);
   if (!t) { lua_pushnil(L); lua_pushstring(L, warn[0] ? warn : "no such template"); return 2; }
   push_entry(L, t->key, t->signature, 0, t->qualified, t->quality, t->created);
-  set_int(L, "layers", t->nlayers);
+  gr_lua_setint(L, "layers", t->nlayers);
   size_t pts = 0, rings = 0, paths = 0;
   for (int q = 0; q < t->nlayers; q++) {
     for (int s = 0; s < t->nslots; s++) { rings += t->rings[q * t->nslots + s]->nrings; pts += t->rings[q * t->nslots + s]->npts; }
     if (t->extra && t->extra[q]) paths += t->extra[q]->nb;
   }
-  set_int(L, "rings", (long long)rings);
-  set_int(L, "points", (long long)pts);
-  set_int(L, "contour_pieces", (long long)paths);
+  gr_lua_setint(L, "rings", (long long)rings);
+  gr_lua_setint(L, "points", (long long)pts);
+  gr_lua_setint(L, "contour_pieces", (long long)paths);
   if (t->meta) { lua_pushstring(L, t->meta); lua_setfield(L, -2, "meta"); }
   gr_template_free(t);
   return 1;
@@ -728,11 +725,11 @@ static int l_kb_show(lua_State *L) {
 
 static void push_report(lua_State *L, const gr_kb_report *r) {
   lua_newtable(L);
-  set_int(L, "ok", (long long)r->ok);
-  set_int(L, "corrupt", (long long)r->corrupt);
-  set_int(L, "orphans", (long long)r->orphans);
-  set_int(L, "removed", (long long)r->removed);
-  set_int(L, "index_entries", (long long)r->index_entries);
+  gr_lua_setint(L, "ok", (long long)r->ok);
+  gr_lua_setint(L, "corrupt", (long long)r->corrupt);
+  gr_lua_setint(L, "orphans", (long long)r->orphans);
+  gr_lua_setint(L, "removed", (long long)r->removed);
+  gr_lua_setint(L, "index_entries", (long long)r->index_entries);
   lua_pushboolean(L, r->index_ok);
   lua_setfield(L, -2, "index_ok");
   if (r->messages) { lua_pushstring(L, r->messages); lua_setfield(L, -2, "messages"); }
