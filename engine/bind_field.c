@@ -193,13 +193,17 @@ static int l_sphere(lua_State *L) {
   return push_new(L, expr_or_raise(L, src));
 }
 
-/* distance(f, {band=mm, cell=mm}): f (negative inside, any scale) as a
- * signed distance to its zero set, exact within band (domain.h). */
+/* distance(f, {band=mm, cell=mm, box={x0,y0,z0,x1,y1,z1}}): f (negative
+ * inside, any scale) as a signed distance to its zero set, exact within band;
+ * f itself where it is a distance already (over box, if given; domain.h). */
 static int l_distance(lua_State *L) {
+  double box[6];
+  int has_box = gr_opt_vec(L, 2, "box", 6, box);
   gr_field *f = gr_to_field(L, 1);
   gr_err e;
   gr_err_clear(&e);
-  gr_field *d = gr_domain_distance(f, gr_opt_number(L, 2, "band", 1), gr_opt_number(L, 2, "cell", 1), &e);
+  gr_field *d = gr_domain_distance(f, gr_opt_number(L, 2, "band", 1), gr_opt_number(L, 2, "cell", 1),
+                                   has_box ? box : NULL, &e);
   gr_field_free(f);
   if (!d) return gr_lua_error(L, &e);
   gr_push_field(L, d);

@@ -64,7 +64,7 @@ M.PARAMS = {
   { "min_length", 0.0, { unit = "mm", min = 0, max = 10, help = "hatch vectors shorter than this are dropped" } },
   { "domain", "", { allow = { userdata = true }, help = "design domain: an STL file of the part or an expression negative inside" } },
   { "skin", 0.0, { unit = "mm", min = 0, max = 10, help = "solid skin depth along the domain's boundary" } },
-  { "domain_distance", false, { help = "make an expression domain a signed distance in mm (smooth expressions), so that skin is in mm whatever its scale" } },
+  { "domain_distance", true, { help = "make an expression domain a signed distance in mm (unless it is one already), so that skin is in mm whatever its scale; false: use the expression's values as they are" } },
   { "faces", true, { help = "contour the lattice where the box of cells cuts it" } },
   { "regions", "", { help = "build styles per region (skin, thin, downskin, upskin): a process profile with regions:, or default (Ti-6Al-4V); empty: none" } },
   { "qualify", false, { allow = FN, help = "verify every template built and qualify it (or a Lua rule)" } },
@@ -159,8 +159,12 @@ end
 local function domain_of(d, origin, cells, L, p)
   if d == nil or d == "" then return nil end
   if p and p.domain_distance and type(d) == "string" and not d:lower():match("%.stl$") then
-    -- gradus.field.distance: closest points on the zero set within the band, for smooth expressions
-    return gradus.field.distance(gradus.field.expr(d), { band = 2 * p.skin + 1, cell = L })
+    -- gradus.field.distance: closest points on the zero set within the band; an expression that is
+    -- a distance over the part's box already (planes and spheres joined by min, max, abs) stays as it is
+    local hi = {}
+    for a = 1, 3 do hi[a] = origin[a] + cells[a] * L end
+    return gradus.field.distance(gradus.field.expr(d), { band = 2 * p.skin + 1, cell = L,
+      box = { origin[1], origin[2], origin[3], hi[1], hi[2], hi[3] } })
   end
   if type(d) == "string" and d:lower():match("%.stl$") then
     local ok, m = pcall(gradus.mesh.read, d)

@@ -11,7 +11,7 @@ TEST(cylinder_squared) {
   gr_err e;
   gr_err_clear(&e);
   gr_field *f = gr_field_expr("100*((x-5)^2+(y-5)^2-16)", &e);
-  gr_field *d = gr_domain_distance(f, 1.5, 2, &e);
+  gr_field *d = gr_domain_distance(f, 1.5, 2, NULL, &e);
   CHECK(d != NULL, "%s", e.msg);
   enum { N = 300 };
   double x[N], y[N], z[N], out[N];
@@ -41,22 +41,53 @@ TEST(distance_kept_nan_named) {
   gr_err_clear(&e);
   gr_field *s = gr_field_constant(0);
   gr_field_set_lipschitz(s, 1);
-  gr_field *d = gr_domain_distance(s, 1, 2, &e);
+  gr_field *d = gr_domain_distance(s, 1, 2, NULL, &e);
   CHECK(d == s, "a field with Lipschitz bound 1 is kept");
   gr_field_free(d);
   gr_field_free(s);
   gr_field *f = gr_field_expr("sqrt(x-1)-0.5", &e);
-  d = gr_domain_distance(f, 1, 2, &e);
+  d = gr_domain_distance(f, 1, 2, NULL, &e);
   double x = 0.5, y = 0, z = 0, v;
   CHECK(gr_field_eval(d, 1, &x, &y, &z, &v, &e) != GR_OK, "NaN refused");
   CHECK(strncmp(e.msg, "domain: ", 8) == 0, "message: %s", e.msg);
-  CHECK(gr_domain_distance(f, 0, 2, &e) == NULL && e.code == GR_EARG, "band 0 refused");
+  CHECK(gr_domain_distance(f, 0, 2, NULL, &e) == NULL && e.code == GR_EARG, "band 0 refused");
   gr_field_free(d);
+  gr_field_free(f);
+}
+
+/* Over a box: planes and spheres joined by min, max and abs are distances
+ * already (kept: the same field); a squared form and a scaled distance are
+ * wrapped, and the scaled one then gives the distance in mm. */
+TEST(distance_probed_over_box) {
+  gr_err e;
+  gr_err_clear(&e);
+  const double box[6] = {0, 0, 0, 10, 10, 6};
+  const char *kept[] = {"min(max(abs(x-5)-4,abs(y-2)-1,abs(z-3)-3),max(abs(x-5)-1,abs(y-6)-4,abs(z-3)-3))",
+                        "max(sqrt((x-5)^2+(y-5)^2)-4,abs(z-3)-2)"};
+  for (int i = 0; i < 2; i++) {
+    gr_field *f = gr_field_expr(kept[i], &e);
+    gr_field *d = gr_domain_distance(f, 1, 2, box, &e);
+    CHECK(d == f, "a distance already is kept: %s", kept[i]);
+    gr_field_free(d);
+    gr_field_free(f);
+  }
+  gr_field *f = gr_field_expr("3*(sqrt((x-5)^2+(y-5)^2)-4)", &e);
+  gr_field *d = gr_domain_distance(f, 1, 2, box, &e);
+  CHECK(d != NULL && d != f, "a scaled distance is wrapped");
+  double x = 5 + 3.7, y = 5, z = 1, v = 0;
+  CHECK(d && gr_field_eval(d, 1, &x, &y, &z, &v, &e) == GR_OK, "%s", e.msg);
+  CHECK_NEAR(v, -0.3, 1e-9);
+  gr_field_free(d);
+  gr_field_free(f);
+  const double empty[6] = {0, 0, 0, 10, 0, 6};
+  f = gr_field_expr("x^2-1", &e);
+  CHECK(gr_domain_distance(f, 1, 2, empty, &e) == NULL && e.code == GR_EARG, "an empty box refused: %s", e.msg);
   gr_field_free(f);
 }
 
 int main(void) {
   RUN(cylinder_squared);
+  RUN(distance_probed_over_box);
   RUN(distance_kept_nan_named);
   DONE();
 }

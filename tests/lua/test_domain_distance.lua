@@ -80,7 +80,7 @@ end)
 -- is the annulus R - S <= r <= R of the skin. Returns the layer and stats.
 local function ring(domain, as_dist)
   local p = lattice.params()
-  p.domain_distance = as_dist or false
+  if as_dist ~= nil then p.domain_distance = as_dist end
   p.surface, p.kind, p.level, p.thickness = "primitive", "network", -2.9, "0.05"
   p.cells, p.kb, p.layers, p.pictures, p.hatch = "5,5,1", "off", "25:25", "25", D
   p.domain, p.skin = domain, S
@@ -136,9 +136,13 @@ t.test("skin of a cylinder domain written squared (made a distance) or as a dist
   local l2 = ring(DIST)
   local h2 = check_ring("distance", l2, 1e-3)
   t.near(h1, h2, 1e-6 * h2, "hatch length of both forms")
-  local l3 = ring(SQUARED, true) -- -D domain_distance=true does the same from the command line
-  local h3 = check_ring("squared, domain_distance", l3, 1e-3)
-  t.near(h3, h1, 1e-6 * h1, "hatch length with domain_distance")
+  local l3 = ring(SQUARED) -- the lattice recipe does the same by default (domain_distance=true)
+  local h3 = check_ring("squared, by default", l3, 1e-3)
+  t.near(h3, h1, 1e-6 * h1, "hatch length of the squared form by default")
+  -- domain_distance=false: the expression's own values, 8 times the distance near r = 4, so the
+  -- band is about 0.3/8 mm deep: narrower than two beam offsets, hardly anything to hatch
+  local _, h4 = measure(ring(SQUARED, false))
+  t.ok(h4 < 0.2 * h1, ("domain_distance=false keeps the values (hatch %.2f mm against %.2f mm)"):format(h4, h1))
   t.eq(st1.trimmed_voxels, 24, "the centre voxel (corners 2.6 mm inside) is an ordinary voxel")
 end)
 
