@@ -15,7 +15,13 @@
  * f(q) = 0 and p - q is parallel to grad f(q)), all points of a batch
  * together; the distance is |p - q| with the sign of f(p). Farther points
  * keep the estimate (at least the band): only their sign matters. The
- * gradient is the field's own (central differences for an expression). */
+ * gradient is the field's own (central differences for an expression).
+ * Given the part's box, a field that is not a distance also gets its zero
+ * set meshed (marching cubes over the box grown by the band): the mesh says
+ * whether the boundary is within the band and seeds a second projection
+ * from its closest point, which finds the nearest branch where f is the max
+ * or min of terms of different scales; the mesh distance stands where no
+ * projection lands near it (edges and corners of the zero set). */
 #ifndef GR_DOMAIN_H
 #define GR_DOMAIN_H
 #include "field.h"

@@ -276,6 +276,11 @@ static int refine_slab(mc_state *s, const gr_field *f, gr_err *e) {
     if (rc) break;
     for (size_t i = 0; i < n; i++) {
       double ft = out[i] - s->iso;
+      if (ta[i] == tb[i]) continue; /* on the zero already */
+      if (ft == 0) { /* an exact zero (a sample equal to iso at an end, too) */
+        ta[i] = tb[i] = t[i];
+        continue;
+      }
       if ((ft >= 0) == (fa[i] >= 0)) {
         ta[i] = t[i]; fa[i] = ft;
         if (side[i] < 0) fb[i] *= 0.5;

@@ -78,14 +78,15 @@ end)
 -- The skin band alone: a P network at level -2.9 is small blobs at the cell
 -- corners (z = 0, 2): the layer at z = 0.98 holds no lattice, so its section
 -- is the annulus R - S <= r <= R of the skin. Returns the layer and stats.
-local function ring(domain, as_dist)
+local function ring(domain, as_dist, layer)
   local p = lattice.params()
+  layer = layer or 25
   if as_dist ~= nil then p.domain_distance = as_dist end
   p.surface, p.kind, p.level, p.thickness = "primitive", "network", -2.9, "0.05"
-  p.cells, p.kb, p.layers, p.pictures, p.hatch = "5,5,1", "off", "25:25", "25", D
+  p.cells, p.kb, p.layers, p.pictures, p.hatch = "5,5,1", "off", layer .. ":" .. layer, tostring(layer), D
   p.domain, p.skin = domain, S
   local st, kept = lattice.run(p, nil)
-  return kept[25], st
+  return kept[layer], st
 end
 
 -- contours of a layer: {closed, dir, rmin, rmax, area} each; hatch length
@@ -144,6 +145,36 @@ t.test("skin of a cylinder domain written squared (made a distance) or as a dist
   local _, h4 = measure(ring(SQUARED, false))
   t.ok(h4 < 0.2 * h1, ("domain_distance=false keeps the values (hatch %.2f mm against %.2f mm)"):format(h4, h1))
   t.eq(st1.trimmed_voxels, 24, "the centre voxel (corners 2.6 mm inside) is an ordinary voxel")
+end)
+
+-- the squared cylinder cut by the planes z = 0.4 and z = 1.6: the max of terms of different
+-- scales, whose larger value is not the nearer boundary (at r = 3.7, z = 0.98 the caps' term
+-- -0.58 wins over the wall's -2.31, though the wall is 0.3 mm away and the caps 0.58 mm)
+local CAPPED = "max((x-5)^2+(y-5)^2-16, abs(z-1)-0.6)"
+
+t.test("skin of a squared cylinder cut by planes: the wall's band in mm mid-height, solid under the cap", function()
+  check_ring("capped, z = 0.98", ring(CAPPED, nil, 25), 1e-3)
+  local cs, hl = measure(ring(CAPPED, nil, 36)) -- z = 1.42: 0.18 mm under the cap, all skin
+  t.eq(#cs, 1, "under the cap: one contour, the disk's")
+  if cs[1] then t.near(cs[1].rmin, R - B, 1e-3, "under the cap: the disk's contour at R - b") end
+  local disk = math.pi * (R - B) ^ 2
+  t.near(hl * D, disk, 0.03 * disk, "under the cap: the whole disk hatched")
+end)
+
+t.test("gradus.field.distance of the capped cylinder: exact away from its rims, within 0.04 mm at them", function()
+  local d = gradus.field.distance(CAPPED, { band = 1.6, cell = 2, box = { 0, 0, 0, 10, 10, 2 } })
+  local far, near = 0, 0
+  for k = 0, 3999 do -- a deterministic spread of points inside and outside, within 0.5 mm of the wall
+    local r, a, z = 3.5 + (k * 0.618034) % 1, k * 2.39996, 0.2 + 1.6 * ((k * 0.414214) % 1)
+    local dr, dz = r - R, math.abs(z - 1) - 0.6
+    local truth = (dr > 0 or dz > 0) and math.sqrt(math.max(dr, 0) ^ 2 + math.max(dz, 0) ^ 2) or math.max(dr, dz)
+    local err = math.abs(d:eval(5 + r * math.cos(a), 5 + r * math.sin(a), z) - truth)
+    -- the rims (r = 4, z = 0.4 or 1.6) are edges that no projection reaches and the mesh cuts:
+    -- the points whose closest point is a rim (outside, dr > 0 and dz > 0) and those near one
+    if (dr > 0 and dz > 0) or math.sqrt(dr ^ 2 + dz ^ 2) < 0.1 then near = math.max(near, err) else far = math.max(far, err) end
+  end
+  t.ok(far < 1e-6, ("closest point on the wall or a cap, 0.1 mm or more from the rims: max error %.2g mm"):format(far))
+  t.ok(near < 0.04, ("closest point a rim, or near one: max error %.3f mm"):format(near))
 end)
 
 t.test("skin of an STL cylinder: depth in mm (within the facets' chord error)", function()
