@@ -44,7 +44,9 @@ function gradus.param(name, default, spec)
     v = raw -- set from Lua
   else
     local t = type(default)
-    if t == "number" then
+    if t == "number" and s.one and raw:find(",") then
+      v = raw -- a list where one number is the default (cell=Lx,Ly,Lz): strict.check reads it
+    elseif t == "number" then
       v = tonumber(raw)
       if not v or v ~= v or v == math.huge or v == -math.huge then
         error(("parameter '%s': a finite number is expected, got '%s'"):format(name, raw), 2)

@@ -131,7 +131,7 @@ static gr_field *cylinder_offset(int side, const char *texpr, int mode, gr_err *
   if (!c) return NULL;
   gr_offset_opts o = gr_offset_defaults();
   o.surface = c;
-  o.cell = 10;
+  o.cell[0] = o.cell[1] = o.cell[2] = 10;
   for (int a = 0; a < 2; a++) { o.box_lo[a] = -5; o.box_hi[a] = 5; }
   o.box_lo[2] = -1; o.box_hi[2] = 1;
   o.res = 40;
@@ -330,7 +330,7 @@ static gr_field *p_sheet(int res, int mode, gr_err *e) {
   if (!phi) return NULL;
   gr_offset_opts o = gr_offset_defaults();
   o.surface = phi;
-  o.cell = PL;
+  o.cell[0] = o.cell[1] = o.cell[2] = PL;
   for (int a = 0; a < 3; a++) { o.box_lo[a] = 0; o.box_hi[a] = PL; }
   o.res = res;
   o.mode = mode;
@@ -400,7 +400,7 @@ TEST(thickness_errors) {
   gr_field *phi = gr_field_tpms("primitive", PL, NULL, 0, &e);
   gr_offset_opts o = gr_offset_defaults();
   o.surface = phi;
-  o.cell = PL;
+  o.cell[0] = o.cell[1] = o.cell[2] = PL;
   for (int a = 0; a < 3; a++) { o.box_lo[a] = 0; o.box_hi[a] = PL; }
   o.res = 10;
   o.thickness = -0.1;
@@ -433,19 +433,19 @@ TEST(thickness_errors) {
  * the voxel that owns the point p (the field's own voxel, or the cell-grid
  * voxel holding p), clamped to [-1, 1]. */
 TEST(voxel_owned_uvw) {
-  double c[3] = {1, 1, 1}, r[3];
+  double c[3] = {1, 1, 1}, r[3], c2[3] = {2, 2, 2};
   double q1[3] = {-0.5, 1.5, 3.2};
-  gr_offset_uvw(q1, c, 2, r);
+  gr_offset_uvw(q1, c, c2, r);
   CHECK_NEAR(r[0], -1, 0); /* across the x = 0 face: clamped */
   CHECK_NEAR(r[1], 0.5, 1e-15);
   CHECK_NEAR(r[2], 1, 0);  /* across the z = 2 face: clamped */
   double q2[3] = {2.0001, -1e-9, 1};
-  gr_offset_uvw(q2, c, 2, r);
+  gr_offset_uvw(q2, c, c2, r);
   CHECK_NEAR(r[0], 1, 0);
   CHECK_NEAR(r[1], -1, 0);
   CHECK_NEAR(r[2], 0, 0);
   double q3[3] = {0.25, 1.75, 0};
-  gr_offset_uvw(q3, c, 2, r);
+  gr_offset_uvw(q3, c, c2, r);
   CHECK_NEAR(r[0], -0.75, 1e-15);
   CHECK_NEAR(r[1], 0.75, 1e-15);
   CHECK_NEAR(r[2], -1, 0);
@@ -460,7 +460,7 @@ static gr_field *gyroid_sheet(int voxel, gr_err *e) {
   if (!phi) return NULL;
   gr_offset_opts o = gr_offset_defaults();
   o.surface = phi;
-  o.cell = PL;
+  o.cell[0] = o.cell[1] = o.cell[2] = PL;
   for (int a = 0; a < 3; a++) { o.box_lo[a] = 0; o.box_hi[a] = PL; }
   o.margin = 0.4;
   o.res = 40;
