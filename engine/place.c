@@ -55,6 +55,18 @@ gr_job_opts gr_job_defaults(void) {
   return o;
 }
 
+/* The largest step <= h that divides Lx, and Ly too when one of the next
+ * few divisions of Lx does (a stretched cell with commensurate lengths, say
+ * 3 x 2 mm); else Lx's (the grids line up along x only). A cube: Lx / n. */
+static double grid_step(const double cell[3], double h) {
+  double n0 = ceil(cell[0] / h - 1e-9);
+  for (double n = n0; n <= 4 * n0; n++) {
+    double m = cell[1] / (cell[0] / n);
+    if (fabs(m - round(m)) < 1e-9 * m) return cell[0] / n;
+  }
+  return cell[0] / n0;
+}
+
 gr_job *gr_job_new(const gr_job_opts *o, gr_err *e) {
   gr_job_opts d = *o;
   for (int a = 0; a < 3; a++)
@@ -80,12 +92,8 @@ gr_job *gr_job_new(const gr_job_opts *o, gr_err *e) {
                    "slice resolution too coarse: cell %g mm > hatch/2 = %g mm (eq. 7, L <= n*d/2)",
                    d.slice_cell, gr_slice_max_cell(d.hatch)), NULL;
   /* make the marching-squares grid divide the cell exactly so that the
-   * grids of neighbouring voxels line up (a stretched cell: Lx; Ly too when
-   * the two are commensurate with it) */
-  {
-    double n = ceil(d.cell[0] / d.slice_cell - 1e-9);
-    d.slice_cell = d.cell[0] / n;
-  }
+   * grids of neighbouring voxels line up */
+  d.slice_cell = grid_step(d.cell, d.slice_cell);
   if (d.contours < 0 || d.contours > 20) return gr_fail(e, GR_EARG, "contours must be 0..20, got %d", d.contours), NULL;
   if (d.res < 2) return gr_fail(e, GR_EARG, "res must be >= 2, got %d", d.res), NULL;
   if (!(d.quant > 0)) return gr_fail(e, GR_EARG, "quantisation must be > 0 mm, got %g", d.quant), NULL;
