@@ -123,9 +123,9 @@ function M.check(name, v, s, default)
       tostring(v), type(v) == "string" and M.suggest(v, s.choices) or ""), 0)
   elseif kind == "vec" then
     if s.empty and v == "" then return "" end
-    if s.one and (type(v) == "number" or (type(v) == "string" and not v:find(","))) then
+    if s.one and (type(v) == "number" or (type(v) == "string" and not v:find(",")) or (type(v) == "table" and #v == 1)) then
       -- one number stands for all n (a cube cell): checked and returned as a number
-      local x = tonumber(v)
+      local x = tonumber(type(v) == "table" and v[1] or v)
       if not in_range(x, s) then refuse(name, number_what(s), v) end
       return x
     end

@@ -227,6 +227,22 @@ t.test("bad cells: refused by name with the accepted range, no output", function
   t.ok(not io.open(out), "no output")
 end)
 
+t.test("a process profile's voxel and a plate part's cell take Lx,Ly,Lz", function()
+  local prof = tmp .. "/prof.yaml"
+  gradus.write_file(prof, "voxel: [2, 2, 3]\nlayer: 0.05\n")
+  local v = require("gradus.profiles").process(prof).voxel
+  t.ok(type(v) == "table" and v[1] == 2 and v[2] == 2 and v[3] == 3, "voxel: [2, 2, 3] is a stretched cell")
+  gradus.write_file(prof, "voxel: 2,2,2\n")
+  t.eq(require("gradus.profiles").process(prof).voxel, 2, "voxel: 2,2,2 is the cube 2")
+  gradus.write_file(prof, "voxel: 2,0,2\n")
+  t.raises(function() require("gradus.profiles").process(prof) end, "prof.yaml:1:%d+: parameter 'voxel' must be a number or 3 numbers")
+  local plate = tmp .. "/plate.yaml"
+  gradus.write_file(plate, "layer: 0.05\nplate: {lo: [0, 0], hi: [100, 100]}\nparts:\n  - name: s\n    at: [50, 50]\n    cell: 2,2,3\n    cells: 1,2,2\n")
+  local d = require("gradus.plate").load(plate)
+  local b = d.parts[1].box
+  t.ok(b[1] == 2 and b[2] == 4 and b[3] == 6, ("the part's box 2 x 4 x 6 mm, got %s"):format(table.concat(b, " x ")))
+end)
+
 t.test("the stretched job reports its lengths; u, v, w of the engine's field are per axis", function()
   local job = gradus.place.job { cell = { 3, 2, 2.5 }, cells = { 1, 1, 1 }, layer = 0.1 }
   t.ok(tostring(job):find("3%.0+ x 2%.0+ x 2%.5"), tostring(job))
