@@ -22,6 +22,21 @@ static void gr1(const gr_field *f, double x, double y, double z, double g[3]) {
 }
 
 /* phi written out with libm for each surface at X, Y, Z (doc/contract.md s.2). */
+/* The analytic gradient of f at (x, y, z) into g; the count of its components
+ * that differ from central differences (relative to 1 + |g|_1). */
+static int grad_mismatch(const gr_field *f, double x, double y, double z, double g[3]) {
+  double h = 1e-5;
+  gr1(f, x, y, z, g);
+  double fd[3] = {(ev(f, x + h, y, z) - ev(f, x - h, y, z)) / (2 * h),
+                  (ev(f, x, y + h, z) - ev(f, x, y - h, z)) / (2 * h),
+                  (ev(f, x, y, z + h) - ev(f, x, y, z - h)) / (2 * h)};
+  double scale = 1 + fabs(g[0]) + fabs(g[1]) + fabs(g[2]);
+  int bad = 0;
+  for (int i = 0; i < 3; i++)
+    if (fabs(g[i] - fd[i]) > 1e-6 * scale) bad++;
+  return bad;
+}
+
 static double ref_phi(int s, double X, double Y, double Z) {
   double cX = cos(X), cY = cos(Y), cZ = cos(Z), sX = sin(X), sY = sin(Y), sZ = sin(Z);
   double c2X = cos(2 * X), c2Y = cos(2 * Y), c2Z = cos(2 * Z);
@@ -137,14 +152,8 @@ TEST(gradients_and_lipschitz) {
     CHECK(isfinite(K) && K > 0, "%s: K = %g", gr_tpms_name(s), K);
     int bad = 0, over = 0;
     for (int k = 0; k < 2000; k++) {
-      double x = rnd(-5, 5), y = rnd(-5, 5), z = rnd(-5, 5), g[3], h = 1e-5;
-      gr1(f, x, y, z, g);
-      double fd[3] = {(ev(f, x + h, y, z) - ev(f, x - h, y, z)) / (2 * h),
-                      (ev(f, x, y + h, z) - ev(f, x, y - h, z)) / (2 * h),
-                      (ev(f, x, y, z + h) - ev(f, x, y, z - h)) / (2 * h)};
-      double scale = 1 + fabs(g[0]) + fabs(g[1]) + fabs(g[2]);
-      for (int i = 0; i < 3; i++)
-        if (fabs(g[i] - fd[i]) > 1e-6 * scale) bad++;
+      double x = rnd(-5, 5), y = rnd(-5, 5), z = rnd(-5, 5), g[3];
+      bad += grad_mismatch(f, x, y, z, g);
       double n = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
       if (n > K) over++;
       if (n > maxg) maxg = n;
@@ -173,7 +182,7 @@ TEST(stretched_surfaces) {
     double K = gr_field_lipschitz(f);
     int bad = 0, badper = 0, badg = 0, over = 0;
     for (int k = 0; k < 300; k++) {
-      double x = rnd(-10, 10), y = rnd(-10, 10), z = rnd(-10, 10), g[3], h = 1e-5;
+      double x = rnd(-10, 10), y = rnd(-10, 10), z = rnd(-10, 10), g[3];
       double v = ev(f, x, y, z);
       double want = ref_phi(s, 2 * M_PI / L[0] * (x - o[0] - L[0] / 2), 2 * M_PI / L[1] * (y - o[1] - L[1] / 2),
                             2 * M_PI / L[2] * (z - o[2] - L[2] / 2));
@@ -181,13 +190,7 @@ TEST(stretched_surfaces) {
       if (fabs(ev(f, x + L[0], y, z) - v) > 1e-9 || fabs(ev(f, x, y - L[1], z) - v) > 1e-9 ||
           fabs(ev(f, x, y, z + 2 * L[2]) - v) > 1e-9)
         badper++;
-      gr1(f, x, y, z, g);
-      double fd[3] = {(ev(f, x + h, y, z) - ev(f, x - h, y, z)) / (2 * h),
-                      (ev(f, x, y + h, z) - ev(f, x, y - h, z)) / (2 * h),
-                      (ev(f, x, y, z + h) - ev(f, x, y, z - h)) / (2 * h)};
-      double scale = 1 + fabs(g[0]) + fabs(g[1]) + fabs(g[2]);
-      for (int i = 0; i < 3; i++)
-        if (fabs(g[i] - fd[i]) > 1e-6 * scale) badg++;
+      badg += grad_mismatch(f, x, y, z, g);
       if (sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) > K) over++;
     }
     CHECK(bad == 0, "%s stretched: %d points differ from the formula", gr_tpms_name(s), bad);
