@@ -126,7 +126,7 @@ function M.check(name, v, s, default)
     if s.one and (type(v) == "number" or (type(v) == "string" and not v:find(",")) or (type(v) == "table" and #v == 1)) then
       -- one number stands for all n (a cube cell): checked and returned as a number
       local x = tonumber(type(v) == "table" and v[1] or v)
-      if not in_range(x, s) then refuse(name, number_what(s), v) end
+      if not in_range(x, s) then refuse(name, number_what(s), x or v) end
       return x
     end
     local t = v
