@@ -15,6 +15,7 @@
 #include "cli.h"
 #include "bind_ovf.h"
 #include "kb.h"
+#include "grid.h"
 #include "place.h"
 #include "regions.h"
 
@@ -101,7 +102,7 @@ static int l_job(lua_State *L) {
              Lmax / 4096, Lmax, o.hatch);
     return luaL_error(L, "%s", msg);
   }
-  o.beam_offset = opt_in(L, 1, "beam_offset", o.beam_offset, -1, fmin(o.cell[0], fmin(o.cell[1], o.cell[2])));
+  o.beam_offset = opt_in(L, 1, "beam_offset", o.beam_offset, -1, gr_cell_min(o.cell));
   o.track = opt_in(L, 1, "track", o.track, -1, 1e3);
   o.contours = gr_opt_integer(L, 1, "contours", o.contours);
   o.contour_first = gr_opt_boolean(L, 1, "contour_first", o.contour_first);
@@ -631,7 +632,7 @@ static int l_run(lua_State *L) {
 static int job_tostring(lua_State *L) {
   gr_job *j = check_job(L, 1);
   const gr_job_opts *o = gr_job_options(j);
-  if (o->cell[0] == o->cell[1] && o->cell[1] == o->cell[2])
+  if (gr_cell_cube(o->cell))
     lua_pushfstring(L, "job: %d x %d x %d voxels of %f mm, %d layers of %f mm", o->n[0], o->n[1], o->n[2], o->cell[0],
                     gr_job_layers(j), o->layer);
   else
