@@ -225,6 +225,10 @@ t.test("bad cells: refused by name with the accepted range, no output", function
   t.raises(function() lattice.run(params { cell = "2,2,1", layer = 0.04, density = "0.2" }, out) end,
     "needs a cubic cell", "density-graded stretched cells")
   t.ok(not io.open(out), "no output")
+  t.raises(function() gradus.place.job { cell = { 2, 2 } } end, "bad option 'cell' %(3 numbers expected, got 2%)")
+  t.raises(function() gradus.place.job { cell = { 2, 0 / 0, 2 } } end,
+    "bad option 'cell' %(finite numbers in %[0.001, 1000%] mm expected, got %-?nan%)")
+  t.raises(function() gradus.place.job { cell = { 2, 2, 0 } } end, "bad option 'cell'.*got 0%)")
 end)
 
 t.test("a process profile's voxel and a plate part's cell take Lx,Ly,Lz", function()
@@ -243,7 +247,7 @@ t.test("a process profile's voxel and a plate part's cell take Lx,Ly,Lz", functi
   t.ok(b[1] == 2 and b[2] == 4 and b[3] == 6, ("the part's box 2 x 4 x 6 mm, got %s"):format(table.concat(b, " x ")))
 end)
 
-t.test("the stretched job reports its lengths; u, v, w of the engine's field are per axis", function()
+t.test("the stretched job reports its lengths; gradus.field.tpms stretched is the formula", function()
   local job = gradus.place.job { cell = { 3, 2, 2.5 }, cells = { 1, 1, 1 }, layer = 0.1 }
   t.ok(tostring(job):find("3%.0+ x 2%.0+ x 2%.5"), tostring(job))
   local f = gradus.field.tpms("primitive", { cell = { LX, LY, LZ } })
