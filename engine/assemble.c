@@ -118,13 +118,13 @@ static int voxel_sides(const gr_job *j, int v) {
   return m;
 }
 
-/* The voxel square [0, L]^2 with the sides in mask moved in by c (mm). */
+/* The voxel rectangle [0, Lx] x [0, Ly] with the sides in mask moved in by c (mm). */
 static void side_box(const gr_job *j, int mask, double c, double lo[2], double hi[2]) {
-  double L = j->o.cell;
+  const double *L = j->o.cell;
   lo[0] = (mask & 1) ? c : 0;
-  hi[0] = (mask & 2) ? L - c : L;
+  hi[0] = (mask & 2) ? L[0] - c : L[0];
   lo[1] = (mask & 4) ? c : 0;
-  hi[1] = (mask & 8) ? L - c : L;
+  hi[1] = (mask & 8) ? L[1] - c : L[1];
 }
 
 /* Offset of the hatch region from the section boundary (hatch.h), mm. */

@@ -1,5 +1,5 @@
 /* bind_distance.c: Lua binding of the distance primitive.
- *   gradus.distance.offset{surface=field, cell=2, origin={x,y,z}, lo={..}, hi={..},
+ *   gradus.distance.offset{surface=field, cell=2 (or {Lx,Ly,Lz}), origin={x,y,z}, lo={..}, hi={..},
  *       margin=0, res=40, thickness=expr|number, inside=expr, kind="sheet"|"network",
  *       side=-1, mode="exact"|"mesh", mesh=mesh} -> field
  * The field is g = d - T(q) (sheet) or sd - T(q) (network): negative inside the
@@ -15,22 +15,23 @@ static int l_offset(lua_State *L) {
   lua_getfield(L, 1, "surface");
   if (lua_isnil(L, -1)) return luaL_error(L, "bad option 'surface' (a field or a TPMS name is needed)");
   gr_field *phi;
-  double cell = gr_opt_number(L, 1, "cell", 2.0);
+  double cell[3] = {2, 2, 2}; /* a number (a cube) or {Lx, Ly, Lz} */
+  gr_opt_vec(L, 1, "cell", 3, cell);
   double origin[3] = {0, 0, 0};
   gr_opt_vec(L, 1, "origin", 3, origin);
   if (lua_type(L, -1) == LUA_TSTRING && gr_tpms_lookup(lua_tostring(L, -1)) >= 0) {
     gr_err e;
     gr_err_clear(&e);
-    phi = gr_field_tpms(lua_tostring(L, -1), cell, origin, gr_opt_number(L, 1, "level", 0), &e);
+    phi = gr_field_tpms3(lua_tostring(L, -1), cell, origin, gr_opt_number(L, 1, "level", 0), &e);
     if (!phi) return gr_lua_error(L, &e);
   } else {
     phi = gr_to_field(L, -1);
   }
   lua_pop(L, 1);
   o.surface = phi;
-  o.cell = cell;
+  memcpy(o.cell, cell, sizeof cell);
   memcpy(o.origin, origin, sizeof origin);
-  double lo[3] = {origin[0], origin[1], origin[2]}, hi[3] = {origin[0] + cell, origin[1] + cell, origin[2] + cell};
+  double lo[3] = {origin[0], origin[1], origin[2]}, hi[3] = {origin[0] + cell[0], origin[1] + cell[1], origin[2] + cell[2]};
   gr_opt_vec(L, 1, "lo", 3, lo);
   gr_opt_vec(L, 1, "hi", 3, hi);
   memcpy(o.box_lo, lo, sizeof lo);

@@ -114,14 +114,15 @@ static int push_new(lua_State *L, gr_field *f) {
 
 /* ---- gradus.field.* ---- */
 
-/* tpms(name, {cell=2, origin={x,y,z}, level=0}) */
+/* tpms(name, {cell=2 (or {Lx,Ly,Lz}: stretched), origin={x,y,z}, level=0}) */
 static int l_tpms(lua_State *L) {
   const char *name = luaL_checkstring(L, 1);
-  double cell = gr_opt_number(L, 2, "cell", 2.0);
+  double cell[3] = {2, 2, 2};
+  gr_opt_vec(L, 2, "cell", 3, cell);
   double origin[3] = {0, 0, 0}, level = gr_opt_number(L, 2, "level", 0.0);
   gr_opt_vec(L, 2, "origin", 3, origin);
   gr_err e = {0};
-  gr_field *f = gr_field_tpms(name, cell, origin, level, &e);
+  gr_field *f = gr_field_tpms3(name, cell, origin, level, &e);
   if (!f) {
     if (gr_tpms_lookup(name) < 0) return luaL_argerror(L, 1, e.msg);
     return luaL_argerror(L, 2, e.msg);

@@ -15,6 +15,7 @@
 #include "cli.h"
 #include "bind_ovf.h"
 #include "kb.h"
+#include "grid.h"
 #include "place.h"
 #include "regions.h"
 
@@ -55,6 +56,24 @@ static double opt_in(lua_State *L, int idx, const char *key, double def, double 
   return v;
 }
 
+/* Option 'cell': a number (a cube) or {Lx, Ly, Lz}, each finite in
+ * [1e-3, 1e3] mm. */
+static void cell_opt(lua_State *L, int idx, double cell[3]) {
+  int t = lua_getfield(L, idx, "cell");
+  lua_pop(L, 1);
+  if (t != LUA_TTABLE) {
+    cell[0] = cell[1] = cell[2] = opt_in(L, idx, "cell", cell[0], 1e-3, 1e3);
+    return;
+  }
+  gr_opt_vec(L, idx, "cell", 3, cell);
+  for (int a = 0; a < 3; a++)
+    if (!(cell[a] >= 1e-3 && cell[a] <= 1e3)) {
+      char msg[160];
+      snprintf(msg, sizeof msg, "bad option 'cell' (finite numbers in [0.001, 1000] mm expected, got %g)", cell[a]);
+      luaL_error(L, "%s", msg);
+    }
+}
+
 /* gradus.place.job{...} */
 static int l_job(lua_State *L) {
   luaL_checktype(L, 1, LUA_TTABLE);
@@ -62,7 +81,8 @@ static int l_job(lua_State *L) {
   b->j = NULL;
   luaL_setmetatable(L, JOB_MT);
   gr_job_opts o = gr_job_defaults();
-  o.cell = opt_in(L, 1, "cell", o.cell, 1e-3, 1e3);
+  cell_opt(L, 1, o.cell);
+  double Lmax = fmax(o.cell[0], fmax(o.cell[1], o.cell[2]));
   gr_opt_vec(L, 1, "origin", 3, o.origin);
   double n[3] = {1, 1, 1};
   gr_opt_vec(L, 1, "cells", 3, n);
@@ -76,13 +96,13 @@ static int l_job(lua_State *L) {
   o.layer = opt_in(L, 1, "layer", o.layer, 1e-4, 1e3);
   o.hatch = opt_in(L, 1, "hatch", o.hatch, 1e-4, 1e3);
   /* the in-plane grid has cell/slice_cell nodes a side, slice_cell <= hatch/2 */
-  if (o.cell / o.hatch > 4096) {
+  if (Lmax / o.hatch > 4096) {
     char msg[160];
     snprintf(msg, sizeof msg, "bad option 'hatch' (at least cell/4096 = %g mm for a cell of %g mm, got %g)",
-             o.cell / 4096, o.cell, o.hatch);
+             Lmax / 4096, Lmax, o.hatch);
     return luaL_error(L, "%s", msg);
   }
-  o.beam_offset = opt_in(L, 1, "beam_offset", o.beam_offset, -1, o.cell);
+  o.beam_offset = opt_in(L, 1, "beam_offset", o.beam_offset, -1, gr_cell_min(o.cell));
   o.track = opt_in(L, 1, "track", o.track, -1, 1e3);
   o.contours = gr_opt_integer(L, 1, "contours", o.contours);
   o.contour_first = gr_opt_boolean(L, 1, "contour_first", o.contour_first);
@@ -91,7 +111,7 @@ static int l_job(lua_State *L) {
   o.pattern = pattern_of(L, gr_opt_string(L, 1, "pattern", "parallel"));
   o.alternate = gr_opt_boolean(L, 1, "alternate", 1);
   o.slice_cell = opt_in(L, 1, "slice_cell", o.slice_cell, -1, o.hatch);
-  if (o.slice_cell > 0 && o.cell / o.slice_cell > 8192)
+  if (o.slice_cell > 0 && Lmax / o.slice_cell > 8192)
     return luaL_error(L, "bad option 'slice_cell' (at least cell/8192 expected)");
   o.res = gr_opt_integer(L, 1, "res", o.res);
   const char *mode = gr_opt_string(L, 1, "mode", "exact");
@@ -392,7 +412,7 @@ static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) 
   gr_lua_setint(L, "thin_walls", st->thin_walls);
   gr_regions_push_stats(L, j, st);
   if (st->layers > 0)
-    gr_lua_setnum(L, "relative_density", st->solid_area / (st->layers * o->n[0] * (double)o->n[1] * o->cell * o->cell));
+    gr_lua_setnum(L, "relative_density", st->solid_area / (st->layers * o->n[0] * (double)o->n[1] * o->cell[0] * o->cell[1]));
   gr_lua_setnum(L, "solid_volume_mm3", st->solid_area * o->layer);
   gr_lua_setint(L, "dropped_short_vectors", st->dropped);
   gr_lua_setint(L, "split_loops", st->split_loops);
@@ -530,7 +550,7 @@ static int l_run(lua_State *L) {
   s.g1 = gb;
   for (int a = 0; a < 3; a++) {
     h.lo[a] = o->origin[a];
-    h.hi[a] = o->origin[a] + o->n[a] * o->cell;
+    h.hi[a] = o->origin[a] + o->n[a] * o->cell[a];
   }
   /* the part's true extent: extent = {x, y, z} max corner (mm), and the
    * heights of the layers written */
@@ -612,8 +632,12 @@ static int l_run(lua_State *L) {
 static int job_tostring(lua_State *L) {
   gr_job *j = check_job(L, 1);
   const gr_job_opts *o = gr_job_options(j);
-  lua_pushfstring(L, "job: %d x %d x %d voxels of %f mm, %d layers of %f mm", o->n[0], o->n[1], o->n[2], o->cell,
-                  gr_job_layers(j), o->layer);
+  if (gr_cell_cube(o->cell))
+    lua_pushfstring(L, "job: %d x %d x %d voxels of %f mm, %d layers of %f mm", o->n[0], o->n[1], o->n[2], o->cell[0],
+                    gr_job_layers(j), o->layer);
+  else
+    lua_pushfstring(L, "job: %d x %d x %d voxels of %f x %f x %f mm, %d layers of %f mm", o->n[0], o->n[1], o->n[2],
+                    o->cell[0], o->cell[1], o->cell[2], gr_job_layers(j), o->layer);
   return 1;
 }
 

@@ -12,10 +12,10 @@
 static gr_offset_opts offset_opts(const gr_job *j, const gr_spec *s, gr_field *phi, const double o[3], double extra) {
   gr_offset_opts oo = gr_offset_defaults();
   oo.surface = phi;
-  oo.cell = j->o.cell;
+  for (int a = 0; a < 3; a++) oo.cell[a] = j->o.cell[a];
   for (int a = 0; a < 3; a++) oo.origin[a] = j->o.origin[a];
   for (int a = 0; a < 3; a++) oo.box_lo[a] = o[a];
-  for (int a = 0; a < 3; a++) oo.box_hi[a] = o[a] + j->o.cell;
+  for (int a = 0; a < 3; a++) oo.box_hi[a] = o[a] + j->o.cell[a];
   oo.voxel = 1;
   oo.margin = j->o.beam_offset + (j->o.contours + 2) * j->o.hatch + 4 * j->o.slice_cell + extra;
   oo.res = j->o.res;
@@ -32,9 +32,9 @@ static gr_offset_opts offset_opts(const gr_job *j, const gr_spec *s, gr_field *p
  * are built with it: templates stay pure functions of their keys. */
 static gr_field *canon_field(gr_job *j, int c, gr_err *e) {
   const gr_spec *s = &j->specs[j->vspec[j->cls[c].rep]];
-  gr_field *phi = gr_field_tpms(gr_tpms_name(s->surface), j->o.cell, j->o.origin, s->level, e);
+  gr_field *phi = gr_field_tpms3(gr_tpms_name(s->surface), j->o.cell, j->o.origin, s->level, e);
   if (!phi) return NULL;
-  gr_offset_opts oo = offset_opts(j, s, phi, j->o.origin, 0.75 * j->o.cell);
+  gr_offset_opts oo = offset_opts(j, s, phi, j->o.origin, 0.75 * gr_cell_min(j->o.cell));
   oo.thickness = 0;
   gr_field *g = gr_offset_field_new(&oo, e);
   gr_field_free(phi);
@@ -48,7 +48,7 @@ static gr_field *voxel_field(gr_job *j, int v, int trimmed, gr_field *like, cons
   const gr_spec *s = &j->specs[j->vspec[v]];
   double o[3];
   gr_grid_origin(&j->grid, v, o);
-  gr_field *phi = gr_field_tpms(gr_tpms_name(s->surface), j->o.cell, j->o.origin, s->level, e);
+  gr_field *phi = gr_field_tpms3(gr_tpms_name(s->surface), j->o.cell, j->o.origin, s->level, e);
   if (!phi) return NULL;
   gr_offset_opts oo = offset_opts(j, s, phi, o, 0);
   oo.like = like;
@@ -223,7 +223,7 @@ static int store_item(void *arg_, int item, gr_err *e) {
 static void share_key(const gr_job *j, int c, char *key, size_t n) {
   const gr_vclass *cl = &j->cls[c];
   key[0] = 0;
-  if (!cl->need || cl->trimmed || !j->o.exact || !j->o.share || !gr_cptab_period(j->o.cell, j->o.slice_cell)) return;
+  if (!cl->need || cl->trimmed || !j->o.exact || !j->o.share || !gr_cptab_periodic(j->o.cell, j->o.slice_cell)) return;
   const gr_spec *sp = &j->specs[j->vspec[cl->rep]];
   int i, jj, k;
   gr_grid_ijk(&j->grid, cl->rep, &i, &jj, &k);
@@ -275,7 +275,7 @@ static gr_cptab *make_table(gr_build *a, int c, gr_field *g, gr_err *e) {
   double phase = gr_grid_mid(&j->grid, gr_grid_row_first(&j->grid, k)) - o[2];
   double z0 = j->o.origin[2] + round(phase / 1e-9) * 1e-9 + cl->t->j0 * j->o.layer;
   /* nodes of crossing edges lie within T + h of H; beyond, only signs matter */
-  double dmax = 0.6 * j->o.cell + 2 * j->o.slice_cell;
+  double dmax = 0.6 * gr_cell_min(j->o.cell) + 2 * j->o.slice_cell;
   gr_cptab *t = gr_cptab_new(j->o.cell, j->o.slice_cell, gr_tmpl_window(&j->o), g, j->o.origin, z0, j->o.layer,
                              cl->t->nl, dmax, e);
   if (!t) return NULL;

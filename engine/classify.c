@@ -27,13 +27,26 @@ static double local_lipschitz(const gr_field *d, int n, const double *x, const d
  * emptiness of the gaps between them; a voxel inside is inside the skin's
  * reach only if no sample is within skin + h of the boundary, so a voxel
  * wholly inside beyond the skin is an ordinary voxel (shares templates). */
+/* The cell lengths as text: "%.9g" for a cube (the signature of cubic cells
+ * is unchanged), "Lx,Ly,Lz" for a stretched cell. */
+typedef struct cell_txt { char s[96]; } cell_txt;
+static cell_txt cell_text(const double L[3]) {
+  cell_txt t;
+  if (gr_cell_cube(L)) snprintf(t.s, sizeof t.s, "%.9g", L[0]);
+  else snprintf(t.s, sizeof t.s, "%.9g,%.9g,%.9g", L[0], L[1], L[2]);
+  return t;
+}
+
 static int classify_domain(gr_job *j, gr_err *e) {
   if (!j->domain) return GR_OK;
   double K0 = gr_field_lipschitz(j->domain);
   enum { M = 5 };
   double x[M * M * M], y[M * M * M], z[M * M * M], f[M * M * M];
-  double L = j->o.cell, grow = j->o.beam_offset + j->o.contours * j->o.hatch + j->skin;
-  double h = (L + 2 * grow) / (M - 1);
+  const double *Lv = j->o.cell;
+  double grow = j->o.beam_offset + j->o.contours * j->o.hatch + j->skin;
+  double hv[3];
+  for (int a = 0; a < 3; a++) hv[a] = (Lv[a] + 2 * grow) / (M - 1);
+  double h = fmax(hv[0], fmax(hv[1], hv[2]));
   double ilo[3] = {INFINITY, INFINITY, INFINITY}, ihi[3] = {-INFINITY, -INFINITY, -INFINITY};
   for (int v = 0; v < j->nvox; v++) {
     if (j->vspec[v] < 0) continue;
@@ -43,14 +56,15 @@ static int classify_domain(gr_job *j, gr_err *e) {
     for (int a = 0; a < M; a++)
       for (int b = 0; b < M; b++)
         for (int c = 0; c < M; c++, n++) {
-          x[n] = o[0] - grow + a * h;
-          y[n] = o[1] - grow + b * h;
-          z[n] = o[2] - grow + c * h;
+          x[n] = o[0] - grow + a * hv[0];
+          y[n] = o[1] - grow + b * hv[1];
+          z[n] = o[2] - grow + c * hv[2];
         }
     if (gr_field_eval(j->domain, n, x, y, z, f, e)) return gr_err_prefix(e, "domain");
     double K = isfinite(K0) ? K0 : local_lipschitz(j->domain, n, x, y, z);
     int pos = 0, neg = 0;
-    double half = h * sqrt(3.0) / 2;
+    /* half the samples' diagonal (a cube: as it always was) */
+    double half = gr_cell_cube(Lv) ? h * sqrt(3.0) / 2 : sqrt(hv[0] * hv[0] + hv[1] * hv[1] + hv[2] * hv[2]) / 2;
     for (int q = 0; q < n; q++) {
       double margin = isfinite(K) ? K * half : 0;
       if (f[q] > margin) pos++;
@@ -79,11 +93,11 @@ static int classify_domain(gr_job *j, gr_err *e) {
   /* a domain smaller than one cell along every axis holds no cell: refuse it
    * (extent from the samples inside it, one sample spacing added) */
   int small = isfinite(ilo[0]);
-  for (int a = 0; a < 3 && small; a++) small = ihi[a] - ilo[a] + h < L;
+  for (int a = 0; a < 3 && small; a++) small = ihi[a] - ilo[a] + hv[a] < Lv[a];
   if (small)
     return gr_fail(e, GR_EARG,
-                   "cell %g mm is larger than the design domain (about %.2g x %.2g x %.2g mm); choose a smaller cell",
-                   L, ihi[0] - ilo[0] + h, ihi[1] - ilo[1] + h, ihi[2] - ilo[2] + h);
+                   "cell %s mm is larger than the design domain (about %.2g x %.2g x %.2g mm); choose a smaller cell",
+                   cell_text(Lv).s, ihi[0] - ilo[0] + hv[0], ihi[1] - ilo[1] + hv[1], ihi[2] - ilo[2] + hv[2]);
   return GR_OK;
 }
 
@@ -94,7 +108,7 @@ static char *voxel_signature(gr_job *j, int v, gr_err *e) {
   gr_grid_origin(&j->grid, v, o);
   int i, jj, k;
   gr_grid_ijk(&j->grid, v, &i, &jj, &k);
-  double L = j->o.cell;
+  const double *L = j->o.cell;
   enum { N = NS * NS * NS };
   double x[N], y[N], z[N], u[N], vv[N], w[N], t[N], ti[N];
   int n = 0;
@@ -102,9 +116,9 @@ static char *voxel_signature(gr_job *j, int v, gr_err *e) {
     for (int b = 0; b < NS; b++)
       for (int c = 0; c < NS; c++, n++) {
         double fa = (a + 0.5) / NS, fb = (b + 0.5) / NS, fc = (c + 0.5) / NS;
-        x[n] = o[0] + fa * L;
-        y[n] = o[1] + fb * L;
-        z[n] = o[2] + fc * L;
+        x[n] = o[0] + fa * L[0];
+        y[n] = o[1] + fb * L[1];
+        z[n] = o[2] + fc * L[2];
         u[n] = 2 * fa - 1;
         vv[n] = 2 * fb - 1;
         w[n] = 2 * fc - 1;
@@ -119,10 +133,10 @@ static char *voxel_signature(gr_job *j, int v, gr_err *e) {
   double phase = gr_grid_mid(&j->grid, g0) - o[2];
   size_t len = (size_t)snprintf(
       sig, cap,
-      GR_TEMPLATE_GEOMETRY " surface: %s, L: %.9g, level: %.9g, kind: %s, side: %d, "
+      GR_TEMPLATE_GEOMETRY " surface: %s, L: %s, level: %.9g, kind: %s, side: %d, "
       "phase: %.9g, layers: %d, t: %.9g, d: %.9g, b: %.9g, contours: %d, cell: %.9g, res: %d, "
       "mode: %s, quant: %.9g, T: [",
-      gr_tpms_name(s->surface), L, s->level, s->network ? "network" : "sheet", s->side,
+      gr_tpms_name(s->surface), cell_text(L).s, s->level, s->network ? "network" : "sheet", s->side,
       round(phase / 1e-9) * 1e-9, gr_grid_row_layers(&j->grid, k), j->o.layer, j->o.hatch,
       j->o.beam_offset, j->o.contours, j->o.slice_cell, j->o.res,
       j->o.exact ? "exact" : "mesh", j->o.quant);

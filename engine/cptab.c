@@ -18,22 +18,27 @@ int gr_cptab_period(double cell, double h) {
   return P <= 32768 && fabs(P - round(P)) < 1e-9 * P && round(P) >= 2 ? (int)round(P) : 0;
 }
 
-gr_cptab *gr_cptab_new(double cell, double h, double margin, const gr_field *ref, const double oref[3], double z0,
+int gr_cptab_periodic(const double cell[3], double h) {
+  return gr_cptab_period(cell[0], h) && gr_cptab_period(cell[1], h);
+}
+
+gr_cptab *gr_cptab_new(const double cell[3], double h, double margin, const gr_field *ref, const double oref[3], double z0,
                        double t_layer, int nl, double dmax, gr_err *e) {
   gr_cptab *t = calloc(1, sizeof *t);
   if (!t) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
-  t->P = gr_cptab_period(cell, h);
+  for (int a = 0; a < 2; a++) t->P[a] = gr_cptab_period(cell[a], h);
   t->nl = nl;
   t->z0 = z0;
   t->t = t_layer;
   t->h = h;
-  t->cell = cell;
+  t->cell[0] = cell[0];
+  t->cell[1] = cell[1];
   t->field = ref;
   for (int a = 0; a < 3; a++) t->oref[a] = oref[a];
   t->lo[0] = t->oref[0] - margin;
   t->lo[1] = t->oref[1] - margin;
   t->dmax = dmax;
-  size_t np = (size_t)t->P * t->P * nl;
+  size_t np = (size_t)t->P[0] * t->P[1] * nl;
   t->q = malloc(3 * np * sizeof *t->q);
   t->sd = malloc(np * sizeof *t->sd);
   if (!t->q || !t->sd) { gr_cptab_free(t); return gr_fail(e, GR_EMEM, "out of memory"), NULL; }
@@ -41,15 +46,15 @@ gr_cptab *gr_cptab_new(double cell, double h, double margin, const gr_field *ref
 }
 
 int gr_cptab_layer(gr_cptab *t, int q, gr_err *e) {
-  size_t n = (size_t)t->P * t->P;
+  size_t n = (size_t)t->P[0] * t->P[1];
   double *x = malloc(3 * n * sizeof *x);
   if (!x) return gr_fail(e, GR_EMEM, "out of memory");
   double *y = x + n, *z = x + 2 * n, zq = t->z0 + q * t->t;
-  for (int b = 0; b < t->P; b++)
-    for (int a = 0; a < t->P; a++) {
-      x[a + (size_t)t->P * b] = t->lo[0] + a * t->h;
-      y[a + (size_t)t->P * b] = t->lo[1] + b * t->h;
-      z[a + (size_t)t->P * b] = zq;
+  for (int b = 0; b < t->P[1]; b++)
+    for (int a = 0; a < t->P[0]; a++) {
+      x[a + (size_t)t->P[0] * b] = t->lo[0] + a * t->h;
+      y[a + (size_t)t->P[0] * b] = t->lo[1] + b * t->h;
+      z[a + (size_t)t->P[0] * b] = zq;
     }
   int rc = gr_offset_closest(t->field, n, x, y, z, t->dmax, t->q + 3 * n * q, t->sd + n * q, e);
   free(x);
@@ -114,9 +119,10 @@ static int near_fn(void *ud, size_t n, const double *x, const double *y, double 
 int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int q,
                    double z, const gr_slice_opts *so, gr_rings *out, gr_err *e) {
   int nx, ny;
-  double hx, hy, L = t->cell;
+  double hx, hy;
+  const int *P = t->P;
   gr_slice_grid_size(so, &nx, &ny, &hx, &hy);
-  size_t nn = (size_t)nx * ny, np = (size_t)t->P * t->P;
+  size_t nn = (size_t)nx * ny, np = (size_t)P[0] * P[1];
   double *Q = malloc(5 * nn * sizeof *Q);
   if (!Q) return gr_fail(e, GR_EMEM, "out of memory");
   double *sd = Q + 3 * nn, *v = Q + 4 * nn;
@@ -124,9 +130,9 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
   const double *tq = t->q + 3 * np * q, *tsd = t->sd + np * q;
   for (int b = 0; b < ny; b++)
     for (int a = 0; a < nx; a++) {
-      size_t n = a + (size_t)nx * b, k = a % t->P + (size_t)t->P * (b % t->P);
-      Q[3 * n] = tq[3 * k] + sh[0] + (a / t->P) * L;
-      Q[3 * n + 1] = tq[3 * k + 1] + sh[1] + (b / t->P) * L;
+      size_t n = a + (size_t)nx * b, k = a % P[0] + (size_t)P[0] * (b % P[1]);
+      Q[3 * n] = tq[3 * k] + sh[0] + (a / P[0]) * t->cell[0];
+      Q[3 * n + 1] = tq[3 * k + 1] + sh[1] + (b / P[1]) * t->cell[1];
       Q[3 * n + 2] = tq[3 * k + 2] + sh[2];
       sd[n] = tsd[k];
     }

@@ -3,7 +3,7 @@
  * Classes that differ only in thickness (same surface, level, kind, z-phase
  * and layers: the rows of a part graded along its height, say) share H. The
  * closest point on H of every slice-grid node is computed once for the group,
- * over one period of the grid (L = P h), and each class only evaluates its
+ * over one period of the grid (Lx = Px h, Ly = Py h), and each class only evaluates its
  * own T there; crossings are refined from the nearest node's closest point
  * instead of searching the mesh. Mesh mode's H depends on the voxel's box, so
  * only exact mode shares.
@@ -18,21 +18,24 @@
 #include "slice.h"
 
 typedef struct gr_cptab {
-  int P;                 /* nodes per period */
+  int P[2];              /* nodes per period along x, y */
   int nl;                /* template layers */
   double z0, t;          /* height of table layer 0, layer thickness, mm */
-  double h, cell;        /* slice grid spacing, cell L, mm */
+  double h, cell[2];     /* slice grid spacing, cell Lx, Ly, mm */
   double lo[2];          /* slice window corner of the reference voxel, mm */
   double oref[3];        /* reference voxel origin, mm */
   double dmax;           /* closest points are exact within this distance of H, mm */
   const gr_field *field; /* the reference class's field */
-  double *q, *sd;        /* per template layer, P*P nodes: closest point, signed distance */
+  double *q, *sd;        /* per template layer, Px*Py nodes: closest point, signed distance */
 } gr_cptab;
 
-/* Nodes per period, or 0 when the slice grid (spacing h) is not periodic with the cell. */
+/* Nodes per period, or 0 when the slice grid (spacing h) is not periodic with
+ * the cell length `cell`. */
 int gr_cptab_period(double cell, double h);
+/* 1 when the slice grid is periodic with both in-plane lengths cell[0], cell[1]. */
+int gr_cptab_periodic(const double cell[3], double h);
 /* An empty table (fill it with gr_cptab_layer for q = 0..nl-1); NULL + e on failure. */
-gr_cptab *gr_cptab_new(double cell, double h, double margin, const gr_field *ref, const double oref[3], double z0,
+gr_cptab *gr_cptab_new(const double cell[3], double h, double margin, const gr_field *ref, const double oref[3], double z0,
                        double t_layer, int nl, double dmax, gr_err *e);
 void gr_cptab_free(gr_cptab *t);
 /* Closest points of table layer q (thread-safe for distinct q). */

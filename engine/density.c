@@ -58,7 +58,7 @@ static double *sample_sd(const char *surface, double level, int N, gr_err *e) {
   if (!phi) return NULL;
   gr_offset_opts o = gr_offset_defaults();
   o.surface = phi;
-  o.cell = 1;
+  o.cell[0] = o.cell[1] = o.cell[2] = 1;
   o.box_hi[0] = o.box_hi[1] = o.box_hi[2] = 1;
   o.margin = 0.5; /* H around the cell: every sample's closest point is on it */
   o.thickness = 0;

@@ -5,13 +5,14 @@
 #include <stdio.h>
 #include <string.h>
 #include "expr.h"
+#include "grid.h"
 #include "mc.h"
 
 /* ---- offset field ---- */
 gr_offset_opts gr_offset_defaults(void) {
   gr_offset_opts o;
   memset(&o, 0, sizeof o);
-  o.cell = 2;
+  o.cell[0] = o.cell[1] = o.cell[2] = 2;
   o.res = 40;
   o.thickness = 0.1;
   o.kind = GR_OFFSET_SHEET;
@@ -28,7 +29,8 @@ typedef struct offset {
   gr_expr *t, *tin;
   gr_field *tfield;   /* T as a field of q, when given so */
   double tconst;
-  double L, o[3];
+  double L, o[3];     /* L: the smallest cell length (tolerances' scale) */
+  double Lv[3];       /* Lx, Ly, Lz */
   int vfix;           /* u, v, w relative to the own voxel (centre vc) */
   double vc[3];
   double maxt;        /* max T over H's vertices (with a 20 % reserve) */
@@ -66,14 +68,14 @@ static void offset_free(void *ud) {
  * holds p (a point on a face belongs to the voxel above it). */
 static void owner_centre(const offset *f, const double p[3], double c[3]) {
   for (int a = 0; a < 3; a++)
-    c[a] = f->vfix ? f->vc[a] : f->o[a] + (floor((p[a] - f->o[a]) / f->L) + 0.5) * f->L;
+    c[a] = f->vfix ? f->vc[a] : f->o[a] + (floor((p[a] - f->o[a]) / f->Lv[a]) + 0.5) * f->Lv[a];
 }
 
 /* q's coordinates relative to the voxel with centre c, normalised so that the
  * voxel spans [-1, 1] and clamped to it (voxel-owned grading). */
-void gr_offset_uvw(const double q[3], const double c[3], double L, double uvw[3]) {
+void gr_offset_uvw(const double q[3], const double c[3], const double L[3], double uvw[3]) {
   for (int a = 0; a < 3; a++) {
-    double t = 2 * (q[a] - c[a]) / L;
+    double t = 2 * (q[a] - c[a]) / L[a];
     uvw[a] = t < -1 ? -1 : t > 1 ? 1 : t;
   }
 }
@@ -95,7 +97,7 @@ static int thick_value(const offset *f, const gr_expr *x, size_t n, const double
       double q[3] = {qx[s + i], qy[s + i], qz[s + i]}, c[3], r[3];
       double pp[3] = {p ? p[0][s + i] : q[0], p ? p[1][s + i] : q[1], p ? p[2][s + i] : q[2]};
       owner_centre(f, pp, c);
-      gr_offset_uvw(q, c, f->L, r);
+      gr_offset_uvw(q, c, f->Lv, r);
       u[i] = r[0];
       v[i] = r[1];
       w[i] = r[2];
@@ -494,29 +496,35 @@ const char *gr_offset_warning(const gr_field *f) {
 }
 
 /* The thickness expressions of o compiled into f (errors name the option). */
+gr_expr *gr_offset_thickness_expr(const char *src, const double cell[3], gr_err *e) {
+  static const char *const vars[] = {"x", "y", "z", "u", "v", "w"};
+  static const char *const cn[] = {"L", "Lx", "Ly", "Lz"};
+  double cv[] = {gr_cell_min(cell), cell[0], cell[1], cell[2]};
+  return gr_expr_compile(src, 6, vars, 4, cn, cv, e);
+}
+
+/* The thickness expressions of o compiled into f (errors name the option). */
 static int offset_compile(offset *f, const gr_offset_opts *o, gr_err *e) {
-  const char *vars[] = {"x", "y", "z", "u", "v", "w"};
-  const char *cn[] = {"L"};
-  double cv[] = {o->cell};
-  if (o->thickness_expr && !(f->t = gr_expr_compile(o->thickness_expr, 6, vars, 1, cn, cv, e))) {
+  double L = gr_cell_min(o->cell);
+  if (o->thickness_expr && !(f->t = gr_offset_thickness_expr(o->thickness_expr, o->cell, e))) {
     char m[512];
     snprintf(m, sizeof m, "%s", e->msg);
     return gr_fail(e, GR_EARG, "bad option 'thickness' (%s)", m);
   }
-  if (o->inside_expr && !(f->tin = gr_expr_compile(o->inside_expr, 6, vars, 1, cn, cv, e))) {
+  if (o->inside_expr && !(f->tin = gr_offset_thickness_expr(o->inside_expr, o->cell, e))) {
     char m[512];
     snprintf(m, sizeof m, "%s", e->msg);
     return gr_fail(e, GR_EARG, "bad option 'inside' (%s)", m);
   }
-  if (!o->thickness_expr && !f->tfield && !f->dens && !(o->thickness >= 0 && o->thickness <= o->cell / 2))
-    return gr_fail(e, GR_EARG, "bad option 'thickness' (must be in [0, L/2 = %g], got %g)", o->cell / 2, o->thickness);
+  if (!o->thickness_expr && !f->tfield && !f->dens && !(o->thickness >= 0 && o->thickness <= L / 2))
+    return gr_fail(e, GR_EARG, "bad option 'thickness' (must be in [0, L/2 = %g], got %g)", L / 2, o->thickness);
   return GR_OK;
 }
 
 /* The largest thickness, estimated from 8^3 samples over the box grown by
  * the margin and half a cell (at most L/2). */
 static double offset_tmax_estimate(const offset *f, const gr_offset_opts *o) {
-  double tmax_est = f->tconst;
+  double tmax_est = f->tconst, L = gr_cell_min(o->cell);
   if (!(f->t || f->tin || f->tfield)) return tmax_est;
   enum { S = 8 };
   double sx[S * S * S], sy[S * S * S], sz[S * S * S], st[S * S * S];
@@ -524,7 +532,7 @@ static double offset_tmax_estimate(const offset *f, const gr_offset_opts *o) {
   for (int a = 0; a < S; a++)
     for (int b = 0; b < S; b++)
       for (int c = 0; c < S; c++, n++) {
-        double m = o->margin + 0.5 * o->cell;
+        double m = o->margin + 0.5 * L;
         sx[n] = o->box_lo[0] - m + (o->box_hi[0] - o->box_lo[0] + 2 * m) * a / (S - 1);
         sy[n] = o->box_lo[1] - m + (o->box_hi[1] - o->box_lo[1] + 2 * m) * b / (S - 1);
         sz[n] = o->box_lo[2] - m + (o->box_hi[2] - o->box_lo[2] + 2 * m) * c / (S - 1);
@@ -539,10 +547,10 @@ static double offset_tmax_estimate(const offset *f, const gr_offset_opts *o) {
       for (int q = 0; q < n; q++)
         if (st[q] > tmax_est) tmax_est = st[q];
     } else {
-      tmax_est = 0.5 * o->cell;
+      tmax_est = 0.5 * L;
     }
   }
-  if (tmax_est > 0.5 * o->cell) tmax_est = 0.5 * o->cell;
+  if (tmax_est > 0.5 * L) tmax_est = 0.5 * L;
   return tmax_est;
 }
 
@@ -563,7 +571,7 @@ static int offset_mesh(offset *f, const gr_offset_opts *o, const offset *lk, dou
       lo[a] = o->box_lo[a] - reach;
       hi[a] = o->box_hi[a] + reach;
       if (!(hi[a] > lo[a])) return gr_fail(e, GR_EARG, "bad option 'box' (empty along axis %d)", a);
-      n[a] = (int)ceil((hi[a] - lo[a]) / o->cell * o->res) + 1;
+      n[a] = (int)ceil((hi[a] - lo[a]) / o->cell[a] * o->res) + 1;
     }
     f->own = gr_mc_field(o->surface, lo, hi, n, 1, e);
     if (!f->own) return e->code ? e->code : GR_EMEM;
@@ -594,6 +602,7 @@ static size_t offset_vertices(const offset *f, const gr_offset_opts *o, int shar
 static int offset_check_thickness(offset *f, const gr_offset_opts *o, size_t nv, const double *vx, const double *vy,
                                   const double *vz, double *t, double *maxt, gr_err *e) {
   *maxt = f->tconst;
+  double L = gr_cell_min(o->cell);
   for (int pass = 0; pass < (f->tin ? 2 : 1) && (f->t || f->tin || f->tfield); pass++) {
     const gr_expr *x = pass ? f->tin : f->t;
     if (!x && !(pass == 0 && f->tfield)) continue;
@@ -605,12 +614,12 @@ static int offset_check_thickness(offset *f, const gr_offset_opts *o, size_t nv,
     }
     if (pass == 0) *maxt = 0;
     for (size_t i = 0; i < nv; i++) {
-      if (!(t[i] >= 0) || t[i] > o->cell / 2) {
+      if (!(t[i] >= 0) || t[i] > L / 2) {
         int out = 0;
         double pv[3] = {vx[i], vy[i], vz[i]};
         for (int a = 0; a < 3; a++) out |= pv[a] < o->box_lo[a] || pv[a] > o->box_hi[a];
         return gr_fail(e, GR_EARG, "bad option '%s' (must be in [0, L/2 = %g], got %g at x=%g, y=%g, z=%g%s)",
-                       pass ? "inside" : "thickness", o->cell / 2, t[i], vx[i], vy[i], vz[i],
+                       pass ? "inside" : "thickness", L / 2, t[i], vx[i], vy[i], vz[i],
                        out ? ", outside the cell's box: the thickness is evaluated on the surface up to a margin beyond"
                              " the part, so it must stay valid there too, e.g. clamp with min(max(z, z0), z1)" : "");
       }
@@ -652,12 +661,15 @@ static void offset_touch_warning(offset *f, const gr_offset_opts *o, int shared,
 
 gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   if (!o->surface) return gr_fail(e, GR_EARG, "bad option 'surface' (a field is needed)"), NULL;
-  if (!(o->cell > 0)) return gr_fail(e, GR_EARG, "bad option 'cell' (must be > 0, got %g)", o->cell), NULL;
+  for (int a = 0; a < 3; a++)
+    if (!(o->cell[a] > 0)) return gr_fail(e, GR_EARG, "bad option 'cell' (must be > 0, got %g)", o->cell[a]), NULL;
+  double L = gr_cell_min(o->cell);
   if (o->res < 2) return gr_fail(e, GR_EARG, "bad option 'res' (must be >= 2, got %d)", o->res), NULL;
   offset *f = calloc(1, sizeof *f);
   if (!f) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
   f->phi = gr_field_ref(o->surface);
-  f->L = o->cell;
+  f->L = L;
+  memcpy(f->Lv, o->cell, sizeof f->Lv);
   memcpy(f->o, o->origin, sizeof f->o);
   f->kind = o->kind;
   f->side = o->side >= 0 ? 1 : -1;
@@ -667,11 +679,11 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   f->lip = gr_field_lipschitz(o->surface);
   f->dens = gr_dtable_ref(o->density);
   f->vfix = o->voxel != 0;
-  for (int a = 0; a < 3; a++) f->vc[a] = o->box_lo[a] + 0.5 * o->cell;
+  for (int a = 0; a < 3; a++) f->vc[a] = o->box_lo[a] + 0.5 * o->cell[a];
   if (offset_compile(f, o, e)) { offset_free(f); return NULL; }
   /* H over the box grown by a reach: margin + the largest thickness (from
    * samples over the grown box) + two mesh spacings */
-  double reach = o->margin + 1.5 * offset_tmax_estimate(f, o) + 3 * o->cell / o->res;
+  double reach = o->margin + 1.5 * offset_tmax_estimate(f, o) + 3 * L / o->res;
   const offset *lk = o->like ? gr_field_callback_data(o->like, offset_eval) : NULL;
   if (o->like && !lk) { offset_free(f); return gr_fail(e, GR_EARG, "bad option 'like' (an offset field is needed)"), NULL; }
   if (offset_mesh(f, o, lk, reach, e)) { offset_free(f); return NULL; }
@@ -689,10 +701,11 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   offset_touch_warning(f, o, lk != NULL, nv, vx, vy, vz, t);
   free(buf);
   f->tmax = maxt;
-  f->herr = 0.5 * o->cell / o->res;
-  f->maxt = 1.2 * maxt + 2 * o->cell / o->res;
+  double hmesh = fmax(o->cell[0], fmax(o->cell[1], o->cell[2])) / o->res; /* the coarsest mesh spacing */
+  f->herr = 0.5 * hmesh;
+  f->maxt = 1.2 * maxt + 2 * hmesh;
   f->tnear = 0.5 * maxt;
-  f->refine_band = 0.25 * o->cell / o->res; /* a quarter mesh spacing: far above H's error */
+  f->refine_band = 0.25 * hmesh; /* a quarter mesh spacing: far above H's error */
   gr_field *g = gr_field_callback(offset_eval, offset_grad, f, offset_free, f->tfield ? gr_field_threadsafe(f->tfield) : 1, o->kind == GR_OFFSET_SHEET ? "sheet offset" : "network offset");
   if (!g) { offset_free(f); return gr_fail(e, GR_EMEM, "out of memory"), NULL; }
   return g;

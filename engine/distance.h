@@ -18,7 +18,8 @@ enum { GR_DIST_MESH = 0, GR_DIST_EXACT = 1 };
 
 typedef struct gr_offset_opts {
   gr_field *surface;          /* phi, zero set H (a reference is taken) */
-  double cell;                /* L, mm (for u, v, w and the thickness bound) */
+  double cell[3];             /* Lx, Ly, Lz, mm (for u, v, w; the thickness bound is
+                                 half the smallest) */
   double origin[3];           /* cell grid origin, mm */
   double box_lo[3], box_hi[3];/* where the field will be evaluated, mm */
   double margin;              /* extra evaluation margin around the box, mm */
@@ -27,7 +28,7 @@ typedef struct gr_offset_opts {
                                  u, v, w relative to it; 0: relative to the voxel of the
                                  cell grid (origin, cell) that holds the point p */
   double thickness;           /* constant T (used when thickness_expr is NULL) */
-  const char *thickness_expr; /* T in x,y,z,u,v,w,L (copied) */
+  const char *thickness_expr; /* T in x,y,z,u,v,w,L,Lx,Ly,Lz (copied) */
   const char *inside_expr;    /* inside T for asymmetric sheets, or NULL */
   gr_field *thickness_field;  /* T as a field of q's global x, y, z (e.g. a Lua
                                  function), used when thickness_expr is NULL */
@@ -45,9 +46,14 @@ typedef struct gr_offset_opts {
 } gr_offset_opts;
 gr_offset_opts gr_offset_defaults(void);
 
-/* The foot point q relative to the voxel with centre c (mm) and size L,
- * normalised to [-1, 1] and clamped: the u, v, w of voxel-owned grading. */
-void gr_offset_uvw(const double q[3], const double c[3], double L, double uvw[3]);
+/* The foot point q relative to the voxel with centre c (mm) and lengths
+ * L[3], each axis normalised to [-1, 1] and clamped: the u, v, w of
+ * voxel-owned grading. */
+void gr_offset_uvw(const double q[3], const double c[3], const double L[3], double uvw[3]);
+
+/* A thickness expression in x, y, z, u, v, w with the constants L (the
+ * smallest cell length), Lx, Ly, Lz (mm); NULL + e when it does not compile. */
+struct gr_expr *gr_offset_thickness_expr(const char *src, const double cell[3], gr_err *e);
 
 /* The offset field (a gr_field usable everywhere). Thickness errors
  * (negative, NaN, over half the cell) are GR_EARG naming the value and the

@@ -33,13 +33,13 @@
 #define JOIN 1e-9
 
 typedef struct fs_iv {
-  int line;    /* 0..3: x = X[line]; 4..7: y = X[line - 4] */
+  int line;    /* 0..3: x = X[0][line]; 4..7: y = X[1][line - 4] */
   double a, b; /* a < b, along the line */
   int sgn;     /* +1: runs from a to b, -1: from b to a */
 } fs_iv;
 
 typedef struct fs_work {
-  double X[4];       /* -m, 0, L, L + m (the outer two INSET inside) */
+  double X[2][4];    /* per axis x, y: -m, 0, L, L + m (the outer two INSET inside) */
   gr_rings *tr;      /* one box's rings, translated */
   gr_layer *pc;      /* one box's clipped pieces */
   gr_layer *ed;      /* the boundary's edges (open polylines) */
@@ -69,9 +69,9 @@ static void box_side(const fs_work *w, int bi, int bj, int s, int *line, double 
   int vert = s & 1, hiside = s == 1 || s == 2;
   int k = vert ? bi + hiside : bj + hiside;  /* index into X */
   *line = vert ? k : 4 + k;
-  *fix = w->X[k];
-  *a = vert ? w->X[bj] : w->X[bi];
-  *b = vert ? w->X[bj + 1] : w->X[bi + 1];
+  *fix = vert ? w->X[0][k] : w->X[1][k];
+  *a = vert ? w->X[1][bj] : w->X[0][bi];
+  *b = vert ? w->X[1][bj + 1] : w->X[0][bi + 1];
   *sgn = s < 2 ? 1 : -1;
 }
 
@@ -112,7 +112,7 @@ static int box_sides(fs_work *w, int bi, int bj) {
  * coordinates, moved by (dx, dy): closed rings inside it go to out, open
  * pieces to w->ed, side intervals to w->iv. */
 static int add_box(fs_work *w, int bi, int bj, const gr_rings *r, double dx, double dy, gr_rings *out) {
-  double lo[2] = {w->X[bi], w->X[bj]}, hi[2] = {w->X[bi + 1], w->X[bj + 1]};
+  double lo[2] = {w->X[0][bi], w->X[1][bj]}, hi[2] = {w->X[0][bi + 1], w->X[1][bj + 1]};
   gr_rings_clear(w->tr);
   gr_layer_clear(w->pc, 0);
   if (gr_rings_append(w->tr, r, dx, dy)) return GR_EMEM;
@@ -141,7 +141,7 @@ static int line_edges(fs_work *w) {
     for (size_t k = 0; k < w->niv; k++)
       if (w->iv[k].line == line) { w->bp[nb++] = w->iv[k].a; w->bp[nb++] = w->iv[k].b; }
     if (nb > 1) qsort(w->bp, nb, sizeof *w->bp, dbl_cmp);
-    double fix = w->X[line & 3];
+    double fix = w->X[line >> 2][line & 3];
     for (size_t k = 0; k + 1 < nb; k++) {
       double p = w->bp[k], q = w->bp[k + 1], mid = 0.5 * (p + q);
       if (!(q > p)) continue;
@@ -195,15 +195,17 @@ static int chain(fs_work *w, gr_rings *out, gr_err *e) {
   return rc;
 }
 
-int gr_fstep_section(double L, double m, const gr_rings *const nb[9], gr_rings *out, gr_err *e) {
+int gr_fstep_section(const double L[2], double m, const gr_rings *const nb[9], gr_rings *out, gr_err *e) {
   fs_work w;
   memset(&w, 0, sizeof w);
   /* the templates' sections are closed along their windows' borders: stay
    * just inside, so that no box side runs along a section edge */
-  w.X[0] = -m + INSET;
-  w.X[1] = 0;
-  w.X[2] = L;
-  w.X[3] = L + m - INSET;
+  for (int a = 0; a < 2; a++) {
+    w.X[a][0] = -m + INSET;
+    w.X[a][1] = 0;
+    w.X[a][2] = L[a];
+    w.X[a][3] = L[a] + m - INSET;
+  }
   gr_rings_clear(out);
   w.tr = gr_rings_new();
   w.pc = gr_layer_new(0);
@@ -213,7 +215,7 @@ int gr_fstep_section(double L, double m, const gr_rings *const nb[9], gr_rings *
     for (int bi = 0; bi < 3 && rc == GR_OK; bi++) {
       const gr_rings *r = nb[3 * bj + bi];
       int own = r != NULL;
-      rc = add_box(&w, bi, bj, own ? r : nb[4], own ? (bi - 1) * L : 0, own ? (bj - 1) * L : 0, out);
+      rc = add_box(&w, bi, bj, own ? r : nb[4], own ? (bi - 1) * L[0] : 0, own ? (bj - 1) * L[1] : 0, out);
     }
   if (rc == GR_OK) rc = line_edges(&w);
   if (rc == GR_OK) rc = chain(&w, out, e);
@@ -238,7 +240,7 @@ static const gr_tlayer *voxel_layer(const gr_job *j, int v, int jl) {
 }
 
 /* Where ring set r crosses the line x = pos (vert) or y = pos, along it,
- * within [0, L]: sorted into *c (grown), count returned; -1 out of memory. */
+ * within [0, L] (L: the voxel's length along the line): sorted into *c (grown), count returned; -1 out of memory. */
 static long face_crossings(const gr_rings *r, int vert, double pos, double L, double **c, size_t *cap) {
   long n = 0;
   for (size_t i = 0; i < r->nrings; i++) {
@@ -262,14 +264,15 @@ static long face_crossings(const gr_rings *r, int vert, double pos, double L, do
  * grading) and b (the side neighbour's own, in its own coordinates) cross
  * the shared face, or the lines s = h/3, 2h/3 and h into the neighbour, at
  * different places (beyond FACE_TOL); 0 if not, -1 out of memory. side: 0
- * x = 0, 1 x = L, 2 y = 0, 3 y = L; h: the hatch offset (the farthest the
- * voxel's contours and hatch region look across the face). */
-static int face_differs(const gr_rings *a, const gr_rings *b, int side, double L, double h) {
+ * x = 0, 1 x = Lx, 2 y = 0, 3 y = Ly (cell: Lx, Ly); h: the hatch offset
+ * (the farthest the voxel's contours and hatch region look across the face). */
+static int face_differs(const gr_rings *a, const gr_rings *b, int side, const double cell[2], double h) {
   int vert = side < 2, r = 0;
+  double Lc = vert ? cell[0] : cell[1], L = vert ? cell[1] : cell[0]; /* across, along */
   double *ca = NULL, *cb = NULL;
   size_t capa = 0, capb = 0;
   for (int q = 0; q < 4 && r == 0; q++) {
-    double s = q * h / 3, pa = (side & 1) ? L + s : -s, pb = (side & 1) ? s : L - s;
+    double s = q * h / 3, pa = (side & 1) ? Lc + s : -s, pb = (side & 1) ? s : Lc - s;
     long na = face_crossings(a, vert, pa, L, &ca, &capa), nb = face_crossings(b, vert, pb, L, &cb, &capb);
     r = na < 0 || nb < 0 ? -1 : na != nb;
     for (long k = 0; r == 0 && k < na; k++)

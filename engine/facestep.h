@@ -12,11 +12,11 @@
  * no sampling). Contours and hatch regions computed from it then run along
  * the step at the beam offset and hatch offset (template.h: gr_tmpl_paths).
  *
- * Takes: the cell size L and margin m (mm) and nine section ring sets in
+ * Takes: the cell lengths L = {Lx, Ly} and margin m (mm) and nine section ring sets in
  * the voxel-local coordinates of their own voxels (nb[3 * (dj + 1) + di + 1]
  * for the neighbour at (di, dj), di, dj in -1..1; NULL = no neighbour: the
  * centre's own section is used there, as the template does). Gives: closed
- * rings of the window [-m, L + m]^2 in the centre voxel's coordinates, solid
+ * rings of the window [-m, Lx + m] x [-m, Ly + m] in the centre voxel's coordinates, solid
  * on the left, closed along the window's border like a template section. */
 #ifndef GR_FACESTEP_H
 #define GR_FACESTEP_H
@@ -27,7 +27,7 @@
 /* The window's section into out (cleared first). GR_OK, GR_EMEM, or GR_EARG
  * when the pieces do not close into rings (degenerate input: a section edge
  * lying along a face); out is then empty and the caller keeps the template. */
-int gr_fstep_section(double L, double m, const gr_rings *const nb[9], gr_rings *out, gr_err *e);
+int gr_fstep_section(const double L[2], double m, const gr_rings *const nb[9], gr_rings *out, gr_err *e);
 /* Voxel v of job j on its row's local layer jl: when its template's section,
  * continued past a side with the voxel's own grading, differs from the side
  * neighbour's own section within the hatch offset of their face (crossings of

@@ -23,10 +23,10 @@ struct gr_field {
   char desc[256];         /* describe text (truncated) */
   /* K_TPMS */
   int surface;            /* catalogue index */
-  double cell;            /* L, mm */
+  double cell[3];         /* Lx, Ly, Lz, mm */
   double origin[3];       /* min corner, mm */
   double level;           /* c */
-  double w;               /* 2*pi/L, rad/mm */
+  double w[3];            /* 2*pi/L per axis, rad/mm */
   /* K_EXPR */
   gr_expr *expr;
   /* K_CALLBACK */
@@ -164,16 +164,23 @@ static gr_field *field_new(int kind) {
 
 gr_field *gr_field_tpms(const char *name, double cell, const double *origin,
                         double level, gr_err *e) {
+  double c3[3] = {cell, cell, cell};
+  return gr_field_tpms3(name, c3, origin, level, e);
+}
+
+gr_field *gr_field_tpms3(const char *name, const double cell[3], const double *origin,
+                         double level, gr_err *e) {
   int s = gr_tpms_lookup(name);
   if (s < 0) {
     gr_fail(e, GR_EARG, "unknown TPMS surface '%s' (valid: %s)", name ? name : "(null)",
             gr_tpms_names());
     return NULL;
   }
-  if (!(cell > 0) || !isfinite(cell)) {
-    gr_fail(e, GR_EARG, "cell size must be > 0, got %g", cell);
-    return NULL;
-  }
+  for (int a = 0; a < 3; a++)
+    if (!(cell[a] > 0) || !isfinite(cell[a])) {
+      gr_fail(e, GR_EARG, "cell size must be > 0, got %g", cell[a]);
+      return NULL;
+    }
   if (!isfinite(level)) {
     gr_fail(e, GR_EARG, "level must be finite, got %g", level);
     return NULL;
@@ -191,16 +198,20 @@ gr_field *gr_field_tpms(const char *name, double cell, const double *origin,
   gr_field *f = field_new(K_TPMS);
   if (!f) { gr_fail(e, GR_EMEM, "out of memory creating a %s field", name); return NULL; }
   f->surface = s;
-  f->cell = cell;
+  memcpy(f->cell, cell, sizeof f->cell);
   memcpy(f->origin, o, sizeof o);
   f->level = level;
-  f->w = 2 * M_PI / cell;
-  f->lip = f->w * sqrt(3.0) * TPMS_DBOUND[s];
+  for (int a = 0; a < 3; a++) f->w[a] = 2 * M_PI / cell[a];
+  /* |grad phi| <= max_a w_a * sqrt(3) * bound (stretched cells: the shortest axis) */
+  f->lip = fmax(f->w[0], fmax(f->w[1], f->w[2])) * sqrt(3.0) * TPMS_DBOUND[s];
+  char L[80];
+  if (cell[0] == cell[1] && cell[1] == cell[2]) snprintf(L, sizeof L, "%g", cell[0]);
+  else snprintf(L, sizeof L, "%gx%gx%g", cell[0], cell[1], cell[2]);
   if (o[0] || o[1] || o[2])
-    setdesc(f, "%s(L=%g, origin=(%g, %g, %g), level=%g)", TPMS_NAMES[s], cell, o[0], o[1],
+    setdesc(f, "%s(L=%s, origin=(%g, %g, %g), level=%g)", TPMS_NAMES[s], L, o[0], o[1],
             o[2], level);
   else
-    setdesc(f, "%s(L=%g, level=%g)", TPMS_NAMES[s], cell, level);
+    setdesc(f, "%s(L=%s, level=%g)", TPMS_NAMES[s], L, level);
   return f;
 }
 
@@ -208,7 +219,8 @@ int gr_field_tpms_info(const gr_field *f, gr_tpms_info *info) {
   if (!f || f->kind != K_TPMS) return 0;
   if (info) {
     info->surface = f->surface;
-    info->cell = f->cell;
+    info->cell = f->cell[0];
+    memcpy(info->lengths, f->cell, sizeof info->lengths);
     memcpy(info->origin, f->origin, sizeof info->origin);
     info->level = f->level;
   }
@@ -372,10 +384,10 @@ static int eval_(const gr_field *f, size_t n, const double *x, const double *y,
   double *t = NULL;
   switch (f->kind) {
   case K_TPMS: {
-    double w = f->w, h = f->cell / 2;
-    double ox = f->origin[0] + h, oy = f->origin[1] + h, oz = f->origin[2] + h;
+    const double *w = f->w;
+    double ox = f->origin[0] + f->cell[0] / 2, oy = f->origin[1] + f->cell[1] / 2, oz = f->origin[2] + f->cell[2] / 2;
     for (size_t i = 0; i < n; i++)
-      out[i] = tpms_point(f->surface, w * (x[i] - ox), w * (y[i] - oy), w * (z[i] - oz),
+      out[i] = tpms_point(f->surface, w[0] * (x[i] - ox), w[1] * (y[i] - oy), w[2] * (z[i] - oz),
                           NULL) - f->level;
     return GR_OK;
   }
@@ -473,11 +485,11 @@ static int grad_(const gr_field *f, size_t n, const double *x, const double *y,
   double *t = NULL;
   switch (f->kind) {
   case K_TPMS: {
-    double w = f->w, h = f->cell / 2, g[3];
-    double ox = f->origin[0] + h, oy = f->origin[1] + h, oz = f->origin[2] + h;
+    const double *w = f->w;
+    double g[3], ox = f->origin[0] + f->cell[0] / 2, oy = f->origin[1] + f->cell[1] / 2, oz = f->origin[2] + f->cell[2] / 2;
     for (size_t i = 0; i < n; i++) {
-      tpms_point(f->surface, w * (x[i] - ox), w * (y[i] - oy), w * (z[i] - oz), g);
-      gx[i] = w * g[0]; gy[i] = w * g[1]; gz[i] = w * g[2];
+      tpms_point(f->surface, w[0] * (x[i] - ox), w[1] * (y[i] - oy), w[2] * (z[i] - oz), g);
+      gx[i] = w[0] * g[0]; gy[i] = w[1] * g[1]; gz[i] = w[2] * g[2];
     }
     return GR_OK;
   }
@@ -597,11 +609,11 @@ int gr_field_eval_grad(const gr_field *f, size_t n, const double *x, const doubl
     return rc ? rc : gr_field_grad(f, n, x, y, z, gx, gy, gz, e);
   }
   /* one set of sines and cosines for both */
-  double w = f->w, h = f->cell / 2, g[3];
-  double ox = f->origin[0] + h, oy = f->origin[1] + h, oz = f->origin[2] + h;
+  const double *w = f->w;
+  double g[3], ox = f->origin[0] + f->cell[0] / 2, oy = f->origin[1] + f->cell[1] / 2, oz = f->origin[2] + f->cell[2] / 2;
   for (size_t i = 0; i < n; i++) {
-    out[i] = tpms_point(f->surface, w * (x[i] - ox), w * (y[i] - oy), w * (z[i] - oz), g) - f->level;
-    gx[i] = w * g[0]; gy[i] = w * g[1]; gz[i] = w * g[2];
+    out[i] = tpms_point(f->surface, w[0] * (x[i] - ox), w[1] * (y[i] - oy), w[2] * (z[i] - oz), g) - f->level;
+    gx[i] = w[0] * g[0]; gy[i] = w[1] * g[1]; gz[i] = w[2] * g[2];
   }
   long i = first_bad(n, out, gx, gy);
   if (i < 0) i = first_bad(n, gz, NULL, NULL);
@@ -645,10 +657,10 @@ static int fill_grid_tpms(const gr_field *f, const grid_axes *g, double *v, gr_e
   double *c[3] = {s[0] + cnt, s[1] + cnt, s[2] + cnt};
   for (int a = 0; a < 3; a++) {
     int n = a < 2 ? g->n[a] : nz;
-    double o = f->origin[a] + f->cell / 2;
+    double o = f->origin[a] + f->cell[a] / 2;
     for (int i = 0; i < n; i++) {
       double p = a == 2 && g->dim == 2 ? g->z : g->lo[a] + i * g->h[a];
-      double X = f->w * (p - o);
+      double X = f->w[a] * (p - o);
       s[a][i] = sin(X);
       c[a][i] = cos(X);
     }

@@ -31,12 +31,18 @@ const char *gr_tpms_names(void);
  * GR_EARG listing the valid names. */
 gr_field *gr_field_tpms(const char *name, double cell, const double *origin,
                         double level, gr_err *e);
+/* The same surface stretched: cell lengths Lx, Ly, Lz (mm, each > 0), so that
+ * X = 2*pi/Lx*(x - origin_x - Lx/2), Y and Z likewise with Ly, Lz. Equal
+ * lengths give exactly gr_field_tpms. */
+gr_field *gr_field_tpms3(const char *name, const double cell[3], const double *origin,
+                         double level, gr_err *e);
 
 /* Information about a TPMS field (for the voxel signature and exact mode);
  * returns 0 if f is not a plain TPMS field. */
 typedef struct gr_tpms_info {
   int surface;       /* catalogue index */
-  double cell;       /* L, mm */
+  double cell;       /* L (a stretched cell: Lx), mm */
+  double lengths[3]; /* Lx, Ly, Lz, mm */
   double origin[3];  /* mm */
   double level;      /* c */
 } gr_tpms_info;

@@ -17,8 +17,8 @@ int gr_lasers_reach_box(const gr_machine *m, int l, const double lo[2], const do
 }
 
 /* Can laser l scan the whole voxel with min corner o? */
-static int laser_reaches(const gr_machine *m, int l, const double o[3], double cell) {
-  double hi[2] = {o[0] + cell, o[1] + cell};
+static int laser_reaches(const gr_machine *m, int l, const double o[3], const double cell[3]) {
+  double hi[2] = {o[0] + cell[0], o[1] + cell[1]};
   return gr_lasers_reach_box(m, l, o, hi);
 }
 
@@ -35,13 +35,13 @@ int gr_lasers_check(const gr_machine *m, const gr_grid *grid, const int *vlaser,
       int l = vlaser[v] >= 0 ? vlaser[v] : 0;
       if (!laser_reaches(m, l, o, grid->cell))
         return gr_fail(e, GR_EARG, "laser %d does not reach voxel [%g, %g] x [%g, %g] mm: the machine's laser fields do not cover the part",
-                       l + 1, o[0], o[0] + grid->cell, o[1], o[1] + grid->cell);
+                       l + 1, o[0], o[0] + grid->cell[0], o[1], o[1] + grid->cell[1]);
       continue;
     }
     for (int l = 0; l < m->n && !any; l++) any = laser_reaches(m, l, o, grid->cell);
     if (!any)
       return gr_fail(e, GR_EARG, "no laser reaches voxel [%g, %g] x [%g, %g] mm: the machine's laser fields do not cover the part",
-                     o[0], o[0] + grid->cell, o[1], o[1] + grid->cell);
+                     o[0], o[0] + grid->cell[0], o[1], o[1] + grid->cell[1]);
   }
   return GR_OK;
 }

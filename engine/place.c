@@ -19,6 +19,7 @@
 #include <string.h>
 #include "build.h"
 #include "classify.h"
+#include "distance.h"
 #include "job.h"
 #include "lasers.h"
 #include "regions.h"
@@ -27,7 +28,7 @@
 gr_job_opts gr_job_defaults(void) {
   gr_job_opts o;
   memset(&o, 0, sizeof o);
-  o.cell = 2.0;
+  o.cell[0] = o.cell[1] = o.cell[2] = 2.0;
   o.n[0] = o.n[1] = o.n[2] = 1;
   o.layer = 0.04;
   o.hatch = 0.05;
@@ -54,10 +55,23 @@ gr_job_opts gr_job_defaults(void) {
   return o;
 }
 
+/* The largest step <= h that divides Lx, and Ly too when one of the next
+ * few divisions of Lx does (a stretched cell with commensurate lengths, say
+ * 3 x 2 mm); else Lx's (the grids line up along x only). A cube: Lx / n. */
+static double grid_step(const double cell[3], double h) {
+  double n0 = ceil(cell[0] / h - 1e-9);
+  for (double n = n0; n <= 4 * n0; n++) {
+    double m = cell[1] / (cell[0] / n);
+    if (fabs(m - round(m)) < 1e-9 * m) return cell[0] / n;
+  }
+  return cell[0] / n0;
+}
+
 gr_job *gr_job_new(const gr_job_opts *o, gr_err *e) {
   gr_job_opts d = *o;
-  if (!(d.cell > 0) || !isfinite(d.cell))
-    return gr_fail(e, GR_EARG, "cell must be > 0 mm, got %g", d.cell), NULL;
+  for (int a = 0; a < 3; a++)
+    if (!(d.cell[a] > 0) || !isfinite(d.cell[a]))
+      return gr_fail(e, GR_EARG, "cell must be > 0 mm, got %g", d.cell[a]), NULL;
   for (int a = 0; a < 3; a++)
     if (d.n[a] < 1 || d.n[a] > 100000)
       return gr_fail(e, GR_EARG, "cells must be >= 1 along each axis, got %d,%d,%d", d.n[0], d.n[1], d.n[2]), NULL;
@@ -65,8 +79,8 @@ gr_job *gr_job_new(const gr_job_opts *o, gr_err *e) {
     return gr_fail(e, GR_EARG, "hatch spacing must be > 0 mm, got %g", d.hatch), NULL;
   if (!(d.layer > 0) || !isfinite(d.layer))
     return gr_fail(e, GR_EARG, "layer thickness must be > 0 mm, got %g", d.layer), NULL;
-  if (d.layer > d.cell)
-    return gr_fail(e, GR_EARG, "layer thickness %g mm is larger than the cell %g mm", d.layer, d.cell), NULL;
+  if (d.layer > d.cell[2])
+    return gr_fail(e, GR_EARG, "layer thickness %g mm is larger than the cell %g mm", d.layer, d.cell[2]), NULL;
   if (!isfinite(d.angle)) return gr_fail(e, GR_EARG, "angle must be a number, got %g", d.angle), NULL;
   if (!isfinite(d.rotation)) return gr_fail(e, GR_EARG, "rotation must be a number, got %g", d.rotation), NULL;
   if (d.beam_offset < 0) d.beam_offset = d.hatch / 2;
@@ -79,10 +93,7 @@ gr_job *gr_job_new(const gr_job_opts *o, gr_err *e) {
                    d.slice_cell, gr_slice_max_cell(d.hatch)), NULL;
   /* make the marching-squares grid divide the cell exactly so that the
    * grids of neighbouring voxels line up */
-  {
-    double n = ceil(d.cell / d.slice_cell - 1e-9);
-    d.slice_cell = d.cell / n;
-  }
+  d.slice_cell = grid_step(d.cell, d.slice_cell);
   if (d.contours < 0 || d.contours > 20) return gr_fail(e, GR_EARG, "contours must be 0..20, got %d", d.contours), NULL;
   if (d.res < 2) return gr_fail(e, GR_EARG, "res must be >= 2, got %d", d.res), NULL;
   if (!(d.quant > 0)) return gr_fail(e, GR_EARG, "quantisation must be > 0 mm, got %g", d.quant), NULL;
@@ -143,7 +154,6 @@ void gr_job_free(gr_job *j) {
 int gr_job_layers(const gr_job *j) { return j->nlayers; }
 const gr_job_opts *gr_job_options(const gr_job *j) { return &j->o; }
 
-static const char *const TVARS[] = {"x", "y", "z", "u", "v", "w"};
 
 int gr_job_add_spec(gr_job *j, const gr_spec *s, gr_err *e) {
   if (s->surface < 0 || s->surface >= gr_tpms_count())
@@ -156,13 +166,11 @@ int gr_job_add_spec(gr_job *j, const gr_spec *s, gr_err *e) {
   gr_expr **ie = realloc(j->iexpr, (j->nspecs + 1) * sizeof *ie);
   if (!ie) return gr_fail(e, GR_EMEM, "out of memory"), -1;
   j->iexpr = ie;
-  const char *cn[] = {"L"};
-  double cv[] = {j->o.cell};
-  gr_expr *t = gr_expr_compile(s->thickness, 6, TVARS, 1, cn, cv, e);
+  gr_expr *t = gr_offset_thickness_expr(s->thickness, j->o.cell, e);
   if (!t) return -1;
   gr_expr *in = NULL;
   if (s->inside[0]) {
-    in = gr_expr_compile(s->inside, 6, TVARS, 1, cn, cv, e);
+    in = gr_offset_thickness_expr(s->inside, j->o.cell, e);
     if (!in) { gr_expr_free(t); return -1; }
   }
   j->specs[j->nspecs] = *s;

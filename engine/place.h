@@ -75,7 +75,7 @@ typedef struct gr_spec {
   double level;         /* c */
   int network;          /* 0 sheet, 1 network */
   int side;             /* network side: -1 (phi < c, default) or +1 */
-  char thickness[512];  /* half-thickness T: expression in x,y,z,u,v,w,L (mm) */
+  char thickness[512];  /* half-thickness T: expression in x,y,z,u,v,w,L,Lx,Ly,Lz (mm) */
   char inside[512];     /* optional inside thickness (asymmetric sheet), "" = T */
   struct gr_dtable *density; /* or NULL: thickness values are densities (density.h) */
   gr_field *target;     /* or NULL: a field of x,y,z used instead of the expression
@@ -85,7 +85,8 @@ typedef struct gr_spec {
 /* Process and strategy parameters of a job (the signature includes those
  * that change a template). */
 typedef struct gr_job_opts {
-  double cell;          /* voxel = unit cell size L, mm */
+  double cell[3];       /* voxel = unit cell lengths Lx, Ly, Lz, mm (a cube: all
+                           equal; stretched cells tile the stretched surface) */
   double origin[3];     /* domain min corner, mm */
   int n[3];             /* voxels along x, y, z */
   double layer;         /* layer thickness t, mm */

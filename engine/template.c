@@ -100,7 +100,7 @@ static int face_lines(const gr_job_opts *o, gr_tlayer *tl) {
   if (!tl->faces && !(tl->faces = gr_layer_new(0))) return GR_EMEM;
   gr_layer_clear(tl->faces, 0);
   const gr_rings *r = tl->section;
-  double L = o->cell, b = o->beam_offset, d = o->hatch, step = o->slice_cell / 4;
+  double b = o->beam_offset, d = o->hatch, step = o->slice_cell / 4;
   int nc = o->contours;
   if (nc <= 0 || r->npts == 0) return GR_OK;
   double R = b + (nc - 1) * d + 2 * step;
@@ -109,8 +109,9 @@ static int face_lines(const gr_job_opts *o, gr_tlayer *tl) {
   int rc = GR_OK;
   for (int side = 0; side < 4 && rc == GR_OK; side++) {
     int vert = side < 2; /* x = const */
+    double Lc = vert ? o->cell[0] : o->cell[1], L = vert ? o->cell[1] : o->cell[0]; /* across, along */
     for (int k = 0; k < nc && rc == GR_OK; k++) {
-      double c = b + k * d, pos = (side & 1) ? L - c : c;
+      double c = b + k * d, pos = (side & 1) ? Lc - c : c;
       fline f = {vert ? pos : 0, vert ? 0 : pos, vert ? 0 : 1, vert ? 1 : 0, R, ed, 0, cr, 0};
       for (size_t i = 0; i < r->nrings; i++) {
         const double *p = gr_ring_xy(r, i);
@@ -175,7 +176,8 @@ static int verify_template_layer(const gr_job_opts *o, gr_tlayer *tl, double ang
   vo.contours = o->contours > 0 ? o->contours : 1;
   vo.clip = 1;
   vo.clip_lo[0] = vo.clip_lo[1] = 0;
-  vo.clip_hi[0] = vo.clip_hi[1] = o->cell;
+  vo.clip_hi[0] = o->cell[0];
+  vo.clip_hi[1] = o->cell[1];
   gr_verify_result vr;
   if (rc == GR_OK && (rc = gr_verify_layer(tl->section, l, &vo, &vr, e)) == GR_OK) {
     tl->q[0] = vr.pore;
@@ -195,7 +197,6 @@ double gr_tmpl_window(const gr_job_opts *o) {
 
 /* Contour, thin-wall and hatch-region options of the templates. */
 static gr_hatch_opts tmpl_hatch_opts(const gr_job_opts *opt, int sharp) {
-  double L = opt->cell;
   gr_hatch_opts ho = gr_hatch_defaults();
   ho.spacing = opt->hatch;
   ho.beam_offset = opt->beam_offset;
@@ -205,12 +206,13 @@ static gr_hatch_opts tmpl_hatch_opts(const gr_job_opts *opt, int sharp) {
   ho.offset = sharp ? offset_sharp : offset_fine;
   /* the window's cut edges are not walls: thin walls only where they reach the voxel */
   ho.thin_box[0] = ho.thin_box[1] = -opt->beam_offset;
-  ho.thin_box[2] = ho.thin_box[3] = L + opt->beam_offset;
+  ho.thin_box[2] = opt->cell[0] + opt->beam_offset;
+  ho.thin_box[3] = opt->cell[1] + opt->beam_offset;
   return ho;
 }
 
 int gr_tmpl_paths(const gr_job_opts *opt, gr_tlayer *tl, int sharp, gr_err *e) {
-  double box_lo[2] = {0, 0}, box_hi[2] = {opt->cell, opt->cell};
+  double box_lo[2] = {0, 0}, box_hi[2] = {opt->cell[0], opt->cell[1]};
   gr_hatch_opts ho = tmpl_hatch_opts(opt, sharp);
   if (!tl->region && !(tl->region = gr_rings_new())) return gr_fail(e, GR_EMEM, "out of memory");
   if (!tl->paths && !(tl->paths = gr_layer_new(0))) return gr_fail(e, GR_EMEM, "out of memory");
@@ -248,17 +250,18 @@ int gr_tmpl_layers(const gr_tmpl_in *in, gr_tmpl *t, const gr_field *f, const gr
   const gr_job_opts *opt = in->o;
   const double *o = in->vo;
   int g0 = in->g0;
-  double L = opt->cell, h = opt->slice_cell;
+  const double *L = opt->cell;
+  double h = opt->slice_cell;
   double m = gr_tmpl_window(opt);
   gr_slice_opts so = gr_slice_defaults();
   so.lo[0] = o[0] - m;
   so.lo[1] = o[1] - m;
-  so.hi[0] = o[0] + L + m;
-  so.hi[1] = o[1] + L + m;
+  so.hi[0] = o[0] + L[0] + m;
+  so.hi[1] = o[1] + L[1] + m;
   so.cell = h;
   so.refine = 1;
   so.chord_tol = CHORD_TOL;
-  double box_lo[2] = {0, 0}, box_hi[2] = {L, L};
+  double box_lo[2] = {0, 0}, box_hi[2] = {L[0], L[1]};
   int rc = GR_OK;
   for (int q = qa; q < qb && rc == GR_OK; q++) {
     gr_tlayer *tl = &t->l[q];
@@ -310,7 +313,11 @@ gr_template *gr_tmpl_to_record(const gr_job_opts *o, const gr_tmpl *t, const cha
   gr_template *r = gr_template_new(sig, t->nl, 2, 1, e);
   if (!r) return NULL;
   char meta[256];
-  snprintf(meta, sizeof meta, "{gradus: %s, voxels_at_build: %d, cell: %g}", GRADUS_VERSION, count, o->cell);
+  if (gr_cell_cube(o->cell))
+    snprintf(meta, sizeof meta, "{gradus: %s, voxels_at_build: %d, cell: %g}", GRADUS_VERSION, count, o->cell[0]);
+  else
+    snprintf(meta, sizeof meta, "{gradus: %s, voxels_at_build: %d, cell: [%g, %g, %g]}", GRADUS_VERSION, count,
+             o->cell[0], o->cell[1], o->cell[2]);
   if (gr_template_set_meta(r, meta, e)) { gr_template_free(r); return NULL; }
   for (int q = 0; q < t->nl; q++) {
     r->z[q] = q * o->layer; /* local layer offsets from the first layer */
@@ -345,7 +352,7 @@ gr_tmpl *gr_tmpl_from_record(const gr_job_opts *o, const gr_template *r, int nl)
     }
   }
   for (int q = 0; q < nl; q++) {
-    double lo[2] = {0, 0}, hi[2] = {o->cell, o->cell};
+    double lo[2] = {0, 0}, hi[2] = {o->cell[0], o->cell[1]};
     t->l[q].area = gr_clip_area(t->l[q].section, lo, hi);
     if (face_lines(o, &t->l[q])) { gr_tmpl_free(t); return NULL; }
   }

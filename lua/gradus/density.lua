@@ -153,7 +153,8 @@ end
 
 -- A thickness given by a field file: specs only (no table, nothing to check).
 local function thickness_file(p)
-  local ok, f = pcall(M.file, p.thickness, { origin = p.density_origin, spacing = p.density_spacing, pad = p.cell })
+  local pad = type(p.cell) == "table" and math.max(p.cell[1], p.cell[2], p.cell[3]) or p.cell -- stretched: the longest
+  local ok, f = pcall(M.file, p.thickness, { origin = p.density_origin, spacing = p.density_spacing, pad = pad })
   if not ok then error(("bad thickness '%s': %s"):format(p.thickness, tostring(f)), 4) end
   return {
     spec = function(_, surface)

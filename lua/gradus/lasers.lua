@@ -161,12 +161,12 @@ end
 
 --- M.warnings(machine, stats, part) -> list of messages: each laser with no
 -- work or under 10 % of the scan time, with the reason. part = {origin =
--- {x, y, z}, cells = {nx, ny, nz}, cell = L (mm), assign = "balance" |
+-- {x, y, z}, cells = {nx, ny, nz}, cell = L or {Lx, Ly, Lz} (mm), assign = "balance" |
 -- "zones" | function}: the voxel columns the lasers could reach.
 function M.warnings(m, st, part)
   local out = {}
   if #m.lasers < 2 then return out end
-  local L, o, c = part.cell, part.origin, part.cells
+  local C, o, c = require("gradus.part").lengths(part.cell), part.origin, part.cells
   local ncol = c[1] * c[2]
   for i, las in ipairs(m.lasers) do
     local share = st.lasers[i] and st.lasers[i].share or 0
@@ -174,15 +174,15 @@ function M.warnings(m, st, part)
       local reach = 0
       for jj = 0, c[2] - 1 do
         for ii = 0, c[1] - 1 do
-          local x0, y0 = o[1] + ii * L, o[2] + jj * L
-          if reaches(las, x0, y0, x0 + L, y0 + L) then reach = reach + 1 end
+          local x0, y0 = o[1] + ii * C[1], o[2] + jj * C[2]
+          if reaches(las, x0, y0, x0 + C[1], y0 + C[2]) then reach = reach + 1 end
         end
       end
       local why
       local f = las.field
       if reach == 0 then
         why = ("its field [%g, %g] x [%g, %g] mm does not reach the part [%g, %g] x [%g, %g] mm (reach)"):format(
-          f.lo[1], f.hi[1], f.lo[2], f.hi[2], o[1], o[1] + c[1] * L, o[2], o[2] + c[2] * L)
+          f.lo[1], f.hi[1], f.lo[2], f.hi[2], o[1], o[1] + c[1] * C[1], o[2], o[2] + c[2] * C[2])
       elseif reach < ncol then
         why = ("its field reaches only %d of the part's %d voxel columns (reach)"):format(reach, ncol)
       elseif part.assign == "zones" then

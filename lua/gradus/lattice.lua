@@ -10,6 +10,7 @@ local M = {}
 M.EQ8 = "0.1*(2*sin(pi*(w+1)/4)+1)"
 
 local strict = require "gradus.strict"
+local part = require "gradus.part"
 local SURFACES = { "primitive", "gyroid", "diamond", "iwp", "neovius", "frd", "fischer_koch_s", "lidinoid",
   "split_p", "octo" }
 local FN = { ["function"] = true }
@@ -20,7 +21,8 @@ local FN = { ["function"] = true }
 -- help("name") and the checks of M.run all read this list.
 M.PARAMS = {
   { "surface", "primitive", { choices = SURFACES, help = "TPMS surface of the cells" } },
-  { "cell", 2.0, { unit = "mm", min = 0.1, max = 100, help = "cell (voxel) size L" } },
+  { "cell", 2.0, { n = 3, one = true, unit = "mm", min = 0.1, max = 100,
+    help = "cell (voxel) size L, or Lx,Ly,Lz for a stretched cell" } },
   { "cells", "2,2,1", { n = 3, integer = true, min = 1, max = 100000, help = "cells along x, y, z" } },
   { "size", "", { n = 3, unit = "mm", min = 0.01, max = 100000, empty = true,
     help = "part size x, y, z instead of cells: the lattice is cut at the faces (empty: cells)" } },
@@ -28,7 +30,7 @@ M.PARAMS = {
   { "level", 0.0, { min = -20, max = 20, help = "iso-level c of the TPMS (the surface phi = c)" } },
   { "kind", "sheet", { choices = { "sheet", "network" }, help = "sheet (a wall around the surface) or network (one side, grown)" } },
   { "thickness", M.EQ8, { kind = "expr", unit = "mm", min = 0.005, max = 10,
-    help = "graded half-thickness T: a number or an expression in x, y, z, u, v, w, L, pi" } },
+    help = "graded half-thickness T: a number or an expression in x, y, z, u, v, w, L, Lx, Ly, Lz, pi" } },
   { "inside", "", { kind = "expr", empty = true, unit = "mm", min = 0.005, max = 10,
     help = "inside half-thickness of an asymmetric sheet (empty: same as thickness)" } },
   { "layer", 0.04, { unit = "mm", min = 0.005, max = 1, help = "layer thickness t" } },
@@ -127,18 +129,25 @@ local function checked(p)
     q[k] = strict.check(k, q[k], d[3], d[2])
   end
   local function rel(ok, fmt, ...) if not ok then error(fmt:format(...), 0) end end
-  rel(q.layer <= q.cell, "parameter 'layer' (%g mm) must not exceed the cell (%g mm)", q.layer, q.cell)
-  rel(q.cell / q.hatch <= 2000, "parameter 'hatch' must be at least cell/2000 = %g mm for a cell of %g mm, got %g",
-    q.cell / 2000, q.cell, q.hatch)
+  -- a stretched cell: the layer against Lz, the hatch and grid against the
+  -- longest length, the beam offset against the shortest
+  local C = part.lengths(q.cell)
+  local lmin, lmax = math.min(C[1], C[2], C[3]), math.max(C[1], C[2], C[3])
+  rel(q.layer <= C[3], "parameter 'layer' (%g mm) must not exceed the cell (%g mm)", q.layer, C[3])
+  rel(lmax / q.hatch <= 2000, "parameter 'hatch' must be at least cell/2000 = %g mm for a cell of %g mm, got %g",
+    lmax / 2000, lmax, q.hatch)
   if q.beam_offset ~= "auto" then
-    rel(q.beam_offset <= q.cell / 4, "parameter 'beam_offset' must be auto (hatch/2) or in [0, %g] mm (cell/4), got %g",
-      q.cell / 4, q.beam_offset)
+    rel(q.beam_offset <= lmin / 4, "parameter 'beam_offset' must be auto (hatch/2) or in [0, %g] mm (cell/4), got %g",
+      lmin / 4, q.beam_offset)
   end
   if q.slice_cell ~= "auto" then
-    rel(q.slice_cell <= q.hatch / 2 and q.slice_cell >= q.cell / 4000,
+    rel(q.slice_cell <= q.hatch / 2 and q.slice_cell >= lmax / 4000,
       "parameter 'slice_cell' must be auto (hatch/2) or in [%g, %g] mm (cell/4000 .. hatch/2), got %g",
-      q.cell / 4000, q.hatch / 2, q.slice_cell)
+      lmax / 4000, q.hatch / 2, q.slice_cell)
   end
+  rel(not (type(q.cell) == "table" and (q.density ~= "" or q.porosity ~= "")),
+    "parameter 'density'/'porosity': design by density needs a cubic cell (the density tables are for cubes), got cell=%s",
+    strict.fmt(q.cell))
   return q
 end
 
@@ -156,14 +165,15 @@ end
 -- The design domain p.domain: a field, an expression, or the path of a
 -- closed STL mesh (the part: its signed distance, gradus.mesh.solid), which
 -- must overlap the box of cells; nil or "": none.
-local function domain_of(d, origin, cells, L, p)
+local function domain_of(d, origin, cells, cell, p)
   if d == nil or d == "" then return nil end
+  local C = part.lengths(cell)
   if p and p.domain_distance and type(d) == "string" and not d:lower():match("%.stl$") then
     -- gradus.field.distance: closest points on the zero set within the band; an expression that is
     -- a distance over the part's box already (planes and spheres joined by min, max, abs) stays as it is
     local hi = {}
-    for a = 1, 3 do hi[a] = origin[a] + cells[a] * L end
-    return gradus.field.distance(gradus.field.expr(d), { band = 2 * p.skin + 1, cell = L,
+    for a = 1, 3 do hi[a] = origin[a] + cells[a] * C[a] end
+    return gradus.field.distance(gradus.field.expr(d), { band = 2 * p.skin + 1, cell = math.min(C[1], C[2], C[3]),
       box = { origin[1], origin[2], origin[3], hi[1], hi[2], hi[3] } })
   end
   if type(d) == "string" and d:lower():match("%.stl$") then
@@ -173,10 +183,10 @@ local function domain_of(d, origin, cells, L, p)
     if not ok then error(("bad domain '%s': %s"):format(d, tostring(m)), 3) end
     local lo, hi = mesh:bounds()
     for a = 1, 3 do
-      if hi[a] <= origin[a] or lo[a] >= origin[a] + cells[a] * L then
+      if hi[a] <= origin[a] or lo[a] >= origin[a] + cells[a] * C[a] then
         error(("bad domain '%s': the part (%g, %g, %g)-(%g, %g, %g) mm lies outside the box of cells (%g, %g, %g)-(%g, %g, %g); set origin and cells")
           :format(d, lo[1], lo[2], lo[3], hi[1], hi[2], hi[3], origin[1], origin[2], origin[3],
-            origin[1] + cells[1] * L, origin[2] + cells[2] * L, origin[3] + cells[3] * L), 3)
+            origin[1] + cells[1] * C[1], origin[2] + cells[2] * C[2], origin[3] + cells[3] * C[3]), 3)
       end
     end
     return m
@@ -196,7 +206,7 @@ end
 local function run(p, out)
   strict.action()
   p = checked(p)
-  local box = require("gradus.part").box(p)
+  local box = part.box(p)
   local cells, origin = box.cells, p.origin
   local domain = box.domain(domain_of(p.domain, origin, cells, p.cell, p))
   local machine
@@ -232,19 +242,20 @@ local function run(p, out)
   end
   local seqf = sequence.get(p.sequence)
   local nx, ny, nz = cells[1], cells[2], cells[3]
-  local L = p.cell
+  local C = part.lengths(p.cell)
+  local Lx, Ly, Lz = C[1], C[2], C[3]
   local zone
   if #machine.lasers > 1 and p.assign == "zones" then
-    zone = lasers.zones(machine, origin[1], origin[1] + nx * L)
+    zone = lasers.zones(machine, origin[1], origin[1] + nx * Lx)
   end
   for k = 0, nz - 1 do
     for j = 0, ny - 1 do
       for i = 0, nx - 1 do
-        local x0, y0, z0 = origin[1] + i * L, origin[2] + j * L, origin[3] + k * L
+        local x0, y0, z0 = origin[1] + i * Lx, origin[2] + j * Ly, origin[3] + k * Lz
         local r = p.rule and p.rule(i, j, k, x0, y0, z0) or {}
         if not r.skip then
           local laser = r.laser
-          if laser == nil and zone then laser = zone(x0, y0, x0 + L, y0 + L) + 1 end
+          if laser == nil and zone then laser = zone(x0, y0, x0 + Lx, y0 + Ly) + 1 end
           if laser == nil and type(p.assign) == "function" then laser = p.assign(i, j, k, x0, y0, z0) end
           if laser ~= nil then
             local l = machine.lasers[laser]
@@ -252,12 +263,12 @@ local function run(p, out)
               error(("voxel (%d, %d, %d): laser %s does not exist (the machine '%s' has %d)")
                 :format(i, j, k, tostring(laser), machine.name, #machine.lasers), 0)
             end
-            if not lasers.reaches(l, x0, y0, x0 + L, y0 + L) then
+            if not lasers.reaches(l, x0, y0, x0 + Lx, y0 + Ly) then
               error(("laser fields of '%s' do not cover the part: laser %d (%s), chosen for voxel (%d, %d, %d), does not reach [%.3f, %.3f] x [%.3f, %.3f] mm")
-                :format(machine.name, laser, l.name or "?", i, j, k, x0, x0 + L, y0, y0 + L), 0)
+                :format(machine.name, laser, l.name or "?", i, j, k, x0, x0 + Lx, y0, y0 + Ly), 0)
             end
           else
-            lasers.reach(machine, x0, y0, x0 + L, y0 + L) -- errors if nobody reaches
+            lasers.reach(machine, x0, y0, x0 + Lx, y0 + Ly) -- errors if nobody reaches
           end
           job:voxel(i, j, k, {
             spec = spec_of(r.surface or p.surface, r.thickness or p.thickness, r.inside or p.inside),
@@ -273,7 +284,7 @@ local function run(p, out)
   if domain then job:domain(domain, { skin = p.skin or 0 }) end
   if dens then
     dens:check(function(i, j, k)
-      local r = p.rule and p.rule(i, j, k, origin[1] + i * L, origin[2] + j * L, origin[3] + k * L) or {}
+      local r = p.rule and p.rule(i, j, k, origin[1] + i * Lx, origin[2] + j * Ly, origin[3] + k * Lz) or {}
       return not r.skip and (r.surface or p.surface) or nil
     end)
   end
@@ -341,23 +352,23 @@ local function run(p, out)
   -- quality of the checked layers on voxel (0,0,k): the vectors against the
   -- true section (the graded offset field sliced directly, 4x finer grid)
   if #checks > 0 then
-    local L, d, b = p.cell, p.hatch, st.effective.beam_offset
+    local d, b = p.hatch, st.effective.beam_offset
     local q = { pore_max = 0, overmelt_max = 0, contour_dev_max_mm = 0, layers = {} }
     local truths = {}
     for _, g in ipairs(checks) do
       if kept[g] then
         local zm = origin[3] + g * p.layer - p.layer / 2
-        local k = math.floor((zm - origin[3]) / L)
+        local k = math.floor((zm - origin[3]) / Lz)
         if not truths[k] then
-          truths[k] = gradus.distance.offset { surface = p.surface, cell = L, origin = origin,
-            lo = { origin[1], origin[2], origin[3] + k * L }, hi = { origin[1] + L, origin[2] + L, origin[3] + (k + 1) * L },
+          truths[k] = gradus.distance.offset { surface = p.surface, cell = { Lx, Ly, Lz }, origin = origin,
+            lo = { origin[1], origin[2], origin[3] + k * Lz }, hi = { origin[1] + Lx, origin[2] + Ly, origin[3] + (k + 1) * Lz },
             res = p.res, thickness = tonumber(p.thickness) or p.thickness, kind = p.kind, mode = "exact", level = p.level }
         end
         local m = b + p.contours * d + 0.1
         local sec = gradus.slice.field(truths[k], zm, { lo = { origin[1] - m, origin[2] - m },
-          hi = { origin[1] + L + m, origin[2] + L + m }, cell = d / 8 })
+          hi = { origin[1] + Lx + m, origin[2] + Ly + m }, cell = d / 8 })
         local r = gradus.hatch.verify(sec, kept[g], { track = d, pixel = d / 20, offset = b, spacing = d,
-          contours = math.max(1, p.contours), clip_lo = { origin[1], origin[2] }, clip_hi = { origin[1] + L, origin[2] + L } })
+          contours = math.max(1, p.contours), clip_lo = { origin[1], origin[2] }, clip_hi = { origin[1] + Lx, origin[2] + Ly } })
         q.pore_max = math.max(q.pore_max, r.pore)
         q.overmelt_max = math.max(q.overmelt_max, r.overmelt)
         q.contour_dev_max_mm = math.max(q.contour_dev_max_mm, r.max_dev)

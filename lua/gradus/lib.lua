@@ -44,7 +44,9 @@ function gradus.param(name, default, spec)
     v = raw -- set from Lua
   else
     local t = type(default)
-    if t == "number" then
+    if t == "number" and s.one then
+      v = raw -- one number or a list (cell=L or Lx,Ly,Lz): strict.check reads it, naming the range
+    elseif t == "number" then
       v = tonumber(raw)
       if not v or v ~= v or v == math.huge or v == -math.huge then
         error(("parameter '%s': a finite number is expected, got '%s'"):format(name, raw), 2)

@@ -8,6 +8,13 @@ local M = {}
 
 local function fmt(v) return ("%.17g"):format(v) end
 
+--- M.lengths(cell) -> {Lx, Ly, Lz}: the cell lengths (mm) of a checked
+-- `cell` parameter, a number (a cube) or a table of three (a stretched cell).
+function M.lengths(cell)
+  if type(cell) == "table" then return { cell[1], cell[2], cell[3] } end
+  return { cell, cell, cell }
+end
+
 --- M.box(p) -> {cells = {nx, ny, nz}, hi = {x, y, z} (the part's max corner,
 -- mm) or nil, layers = N or nil, domain = function(d) -> d cut by the box}
 -- for checked lattice parameters p (cell, cells, size, origin, layer).
@@ -15,9 +22,9 @@ function M.box(p)
   if p.size == nil or p.size == "" then
     return { cells = p.cells, domain = function(d) return d end }
   end
-  local L, o, cells, hi, terms = p.cell, p.origin, {}, {}, {}
+  local C, o, cells, hi, terms = M.lengths(p.cell), p.origin, {}, {}, {}
   for a = 1, 3 do
-    local n = p.size[a] / L
+    local n = p.size[a] / C[a]
     local whole = math.floor(n + 0.5)
     if math.abs(n - whole) <= 1e-9 * math.max(1, n) then
       cells[a] = math.max(1, whole)
@@ -32,8 +39,8 @@ function M.box(p)
     error(("parameter 'size': the height %g mm is less than half a layer (%g mm)"):format(p.size[3], p.layer), 0)
   end
   if #terms > 0 and not p.faces then
-    error(("parameter 'size': %g x %g mm is not whole cells of %g mm, and faces=false (leaving the cut open) is not supported with size yet")
-      :format(p.size[1], p.size[2], L), 0)
+    error(("parameter 'size': %g x %g mm is not whole cells of %s mm, and faces=false (leaving the cut open) is not supported with size yet")
+      :format(p.size[1], p.size[2], C[1] == C[2] and ("%g"):format(C[1]) or ("%g x %g"):format(C[1], C[2])), 0)
   end
   local cut -- nil: no face inside a cell
   if #terms == 1 then cut = terms[1] elseif #terms == 2 then cut = ("max(%s,%s)"):format(terms[1], terms[2]) end

@@ -115,13 +115,14 @@ local function load_part(d, t, i, layer, decl)
     fail(d, t, "layer", "part '%s': layer %s differs from the plate's layer thickness %g mm", name, raw(t.layer), layer)
   end
   -- the box in the part's own coordinates (gradus.part): the rotated box is the footprint
-  local cell = tonumber(part.params.cell) or decl.cell[2]
+  local cell = part.params.cell and strict.check("cell", part.params.cell, decl.cell[3], decl.cell[2]) or decl.cell[2]
+  local C = require("gradus.part").lengths(cell) -- a stretched cell: Lx, Ly, Lz
   local size = {}
   if part.params.size and part.params.size ~= "" then
     for x in part.params.size:gmatch("[^,]+") do size[#size + 1] = tonumber(x) end
   else
     local cells = part.params.cells or decl.cells[2]
-    for x in cells:gmatch("[^,]+") do size[#size + 1] = tonumber(x) * cell end
+    for x in cells:gmatch("[^,]+") do size[#size + 1] = tonumber(x) * C[#size + 1] end
   end
   part.box = size
   part.pos = t

@@ -228,7 +228,7 @@ local function stage_templates(work, recipe, params)
   local total = st.layers_total
   if type(total) ~= "number" then error(recipe .. ": its stats have no layers_total (not a gradus job?)", 0) end
   local par = st.parameters or {}
-  local L, t = tonumber(par.cell), tonumber(par.layer)
+  local L, t = tonumber(type(par.cell) == "table" and par.cell[3] or par.cell), tonumber(par.layer) -- Lz: a row's height
   local built = st.templates and st.templates.built or 0
   if params.kb == "off" then
     print("templates: kb=off: every layer task builds its own voxels")

@@ -96,7 +96,8 @@ end
 --- M.check(name, value, spec [, default]) -> the value converted (vectors to
 -- tables of numbers, numeric strings to numbers); raises naming the parameter
 -- and the accepted range. spec: {unit=, help=, min=, max=, integer=true,
--- choices={...}, n= (vector length), auto="text" (also accepts "auto"),
+-- choices={...}, n= (vector length), one=true (with n: one number, or n
+-- equal ones, is returned as a number), auto="text" (also accepts "auto"),
 -- empty=true (expr: "" allowed), allow={type=true...} (other Lua types
 -- passed through, e.g. ["function"]=true)}.
 function M.check(name, v, s, default)
@@ -122,6 +123,12 @@ function M.check(name, v, s, default)
       tostring(v), type(v) == "string" and M.suggest(v, s.choices) or ""), 0)
   elseif kind == "vec" then
     if s.empty and v == "" then return "" end
+    if s.one and (type(v) == "number" or (type(v) == "string" and not v:find(",")) or (type(v) == "table" and #v == 1)) then
+      -- one number stands for all n (a cube cell): checked and returned as a number
+      local x = tonumber(type(v) == "table" and v[1] or v)
+      if not in_range(x, s) then refuse(name, number_what(s), x or v) end
+      return x
+    end
     local t = v
     if type(v) == "number" then
       t = {}
@@ -132,7 +139,15 @@ function M.check(name, v, s, default)
     end
     local ok = type(t) == "table" and #t == s.n
     for i = 1, ok and s.n or 0 do ok = ok and in_range(t[i], s) end
+    if not ok and s.one then
+      refuse(name, ("a number or %d numbers in %s 'a,b,c'"):format(s.n, range_text(s)), v)
+    end
     if not ok then refuse(name, number_what(s, s.n) .. " 'a,b,c'", v) end
+    if s.one then -- n equal numbers are one (a cube cell given as L,L,L)
+      local same = true
+      for i = 2, s.n do same = same and t[i] == t[1] end
+      if same then return t[1] end
+    end
     return t
   elseif kind == "expr" then
     local x = type(v) == "number" and v or (type(v) == "string" and tonumber(v)) or nil

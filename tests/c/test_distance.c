@@ -131,7 +131,7 @@ static gr_field *cylinder_offset(int side, const char *texpr, int mode, gr_err *
   if (!c) return NULL;
   gr_offset_opts o = gr_offset_defaults();
   o.surface = c;
-  o.cell = 10;
+  o.cell[0] = o.cell[1] = o.cell[2] = 10;
   for (int a = 0; a < 2; a++) { o.box_lo[a] = -5; o.box_hi[a] = 5; }
   o.box_lo[2] = -1; o.box_hi[2] = 1;
   o.res = 40;
@@ -330,7 +330,7 @@ static gr_field *p_sheet(int res, int mode, gr_err *e) {
   if (!phi) return NULL;
   gr_offset_opts o = gr_offset_defaults();
   o.surface = phi;
-  o.cell = PL;
+  o.cell[0] = o.cell[1] = o.cell[2] = PL;
   for (int a = 0; a < 3; a++) { o.box_lo[a] = 0; o.box_hi[a] = PL; }
   o.res = res;
   o.mode = mode;
@@ -400,7 +400,7 @@ TEST(thickness_errors) {
   gr_field *phi = gr_field_tpms("primitive", PL, NULL, 0, &e);
   gr_offset_opts o = gr_offset_defaults();
   o.surface = phi;
-  o.cell = PL;
+  o.cell[0] = o.cell[1] = o.cell[2] = PL;
   for (int a = 0; a < 3; a++) { o.box_lo[a] = 0; o.box_hi[a] = PL; }
   o.res = 10;
   o.thickness = -0.1;
@@ -433,22 +433,69 @@ TEST(thickness_errors) {
  * the voxel that owns the point p (the field's own voxel, or the cell-grid
  * voxel holding p), clamped to [-1, 1]. */
 TEST(voxel_owned_uvw) {
-  double c[3] = {1, 1, 1}, r[3];
+  double c[3] = {1, 1, 1}, r[3], c2[3] = {2, 2, 2};
   double q1[3] = {-0.5, 1.5, 3.2};
-  gr_offset_uvw(q1, c, 2, r);
+  gr_offset_uvw(q1, c, c2, r);
   CHECK_NEAR(r[0], -1, 0); /* across the x = 0 face: clamped */
   CHECK_NEAR(r[1], 0.5, 1e-15);
   CHECK_NEAR(r[2], 1, 0);  /* across the z = 2 face: clamped */
   double q2[3] = {2.0001, -1e-9, 1};
-  gr_offset_uvw(q2, c, 2, r);
+  gr_offset_uvw(q2, c, c2, r);
   CHECK_NEAR(r[0], 1, 0);
   CHECK_NEAR(r[1], -1, 0);
   CHECK_NEAR(r[2], 0, 0);
   double q3[3] = {0.25, 1.75, 0};
-  gr_offset_uvw(q3, c, 2, r);
+  gr_offset_uvw(q3, c, c2, r);
   CHECK_NEAR(r[0], -0.75, 1e-15);
   CHECK_NEAR(r[1], 0.75, 1e-15);
   CHECK_NEAR(r[2], -1, 0);
+  /* a stretched voxel 4 x 2 x 1 about (2, 1, 0.5): each axis by its own length */
+  double cs[3] = {2, 1, 0.5}, Ls[3] = {4, 2, 1}, q4[3] = {3, 0.5, 0.75};
+  gr_offset_uvw(q4, cs, Ls, r);
+  CHECK_NEAR(r[0], 0.5, 1e-15);
+  CHECK_NEAR(r[1], -0.5, 1e-15);
+  CHECK_NEAR(r[2], 0.5, 1e-15);
+}
+
+/* A stretched P sheet (cell 3 x 2 x 2.5, T = 0.05 + 0.01 u): in the plane
+ * z = 1.25 (Z = 0) the surface's normal n is horizontal, so along n from a
+ * point q of the curve cos X + cos Y = -1 the field is |s| - T(q) with the
+ * Euclidean distance |s| (mm), u = 2 (q_x - 1.5) / 3. */
+TEST(stretched_sheet) {
+  gr_err e;
+  double L[3] = {3, 2, 2.5}, w[3] = {2 * M_PI / 3, M_PI, 2 * M_PI / 2.5};
+  gr_field *phi = gr_field_tpms3("primitive", L, NULL, 0, &e);
+  CHECK(phi != NULL, "%s", e.msg);
+  if (!phi) return;
+  gr_offset_opts o = gr_offset_defaults();
+  o.surface = phi;
+  for (int a = 0; a < 3; a++) { o.cell[a] = L[a]; o.box_lo[a] = 0; o.box_hi[a] = L[a]; }
+  o.res = 30;
+  o.voxel = 1;
+  o.thickness_expr = "0.05+0.01*u";
+  gr_field *g = gr_offset_field_new(&o, &e);
+  gr_field_free(phi);
+  CHECK(g != NULL, "%s", e.msg);
+  if (!g) return;
+  double emax = 0;
+  int n = 0;
+  for (int i = 1; i < 40; i++) {
+    double x = 3.0 * i / 40, X = w[0] * (x - 1.5);
+    if (cos(X) > -0.05) continue;
+    double Y = acos(-1 - cos(X)), y = 1 + Y / w[1];
+    if (y > 1.8) continue;
+    double gx = -w[0] * sin(X), gy = -w[1] * sin(Y), gn = sqrt(gx * gx + gy * gy);
+    double T = 0.05 + 0.01 * (2 * (x - 1.5) / 3);
+    for (int k = -2; k <= 2; k++) {
+      double s = 0.02 * k;
+      emax = fmax(emax, fabs(eval1(g, x + s * gx / gn, y + s * gy / gn, 1.25) - (fabs(s) - T)));
+      n++;
+    }
+  }
+  printf("  info: stretched P sheet, %d points: max |g - (|s| - T(q))| %.3g mm\n", n, emax);
+  CHECK(n >= 60, "only %d points", n);
+  CHECK(emax < 1e-6, "max deviation %g mm", emax);
+  gr_field_free(g);
 }
 
 /* A gyroid sheet graded along w (T = 0.06 + 0.03 w, L = 2): near a z face
@@ -460,7 +507,7 @@ static gr_field *gyroid_sheet(int voxel, gr_err *e) {
   if (!phi) return NULL;
   gr_offset_opts o = gr_offset_defaults();
   o.surface = phi;
-  o.cell = PL;
+  o.cell[0] = o.cell[1] = o.cell[2] = PL;
   for (int a = 0; a < 3; a++) { o.box_lo[a] = 0; o.box_hi[a] = PL; }
   o.margin = 0.4;
   o.res = 40;
@@ -519,6 +566,7 @@ int main(void) {
   RUN(graded_p_sheet);
   RUN(thickness_errors);
   RUN(voxel_owned_uvw);
+  RUN(stretched_sheet);
   RUN(voxel_owned_field);
   DONE();
 }

@@ -11,6 +11,7 @@
 
 #define L 2.0
 #define M 0.175
+static const double LL[2] = {L, L};
 
 /* A strip |y - 1| < w over the window [-M, L + M]^2, voxel-local, CCW. */
 static gr_rings *strip(double w) {
@@ -44,7 +45,7 @@ TEST(step_at_x_face) {
   gr_rings *wide = strip(0.3), *narrow = strip(0.1), *out = gr_rings_new();
   const gr_rings *nb[9] = {wide, wide, wide, wide, wide, narrow, wide, wide, wide};
   gr_err e = {0};
-  CHECK(gr_fstep_section(L, M, nb, out, &e) == GR_OK, "%s", e.msg);
+  CHECK(gr_fstep_section(LL, M, nb, out, &e) == GR_OK, "%s", e.msg);
   /* the window is drawn 1e-6 inside the templates' */
   double W = L + 2 * M - 2e-6, right = M - 1e-6;
   CHECK(out->nrings == 1, "one ring, got %zu", out->nrings);
@@ -63,7 +64,7 @@ TEST(equal_neighbours_and_missing_ones) {
   gr_rings *wide = strip(0.3), *out = gr_rings_new();
   const gr_rings *nb[9] = {NULL, wide, NULL, wide, wide, wide, NULL, NULL, NULL};
   gr_err e = {0};
-  CHECK(gr_fstep_section(L, M, nb, out, &e) == GR_OK, "%s", e.msg);
+  CHECK(gr_fstep_section(LL, M, nb, out, &e) == GR_OK, "%s", e.msg);
   int outside;
   CHECK(out->nrings == 1, "one ring, got %zu", out->nrings);
   CHECK_NEAR(gr_rings_area(out), 0.6 * (L + 2 * M - 2e-6), 1e-9);

@@ -22,6 +22,21 @@ static void gr1(const gr_field *f, double x, double y, double z, double g[3]) {
 }
 
 /* phi written out with libm for each surface at X, Y, Z (doc/contract.md s.2). */
+/* The analytic gradient of f at (x, y, z) into g; the count of its components
+ * that differ from central differences (relative to 1 + |g|_1). */
+static int grad_mismatch(const gr_field *f, double x, double y, double z, double g[3]) {
+  double h = 1e-5;
+  gr1(f, x, y, z, g);
+  double fd[3] = {(ev(f, x + h, y, z) - ev(f, x - h, y, z)) / (2 * h),
+                  (ev(f, x, y + h, z) - ev(f, x, y - h, z)) / (2 * h),
+                  (ev(f, x, y, z + h) - ev(f, x, y, z - h)) / (2 * h)};
+  double scale = 1 + fabs(g[0]) + fabs(g[1]) + fabs(g[2]);
+  int bad = 0;
+  for (int i = 0; i < 3; i++)
+    if (fabs(g[i] - fd[i]) > 1e-6 * scale) bad++;
+  return bad;
+}
+
 static double ref_phi(int s, double X, double Y, double Z) {
   double cX = cos(X), cY = cos(Y), cZ = cos(Z), sX = sin(X), sY = sin(Y), sZ = sin(Z);
   double c2X = cos(2 * X), c2Y = cos(2 * Y), c2Z = cos(2 * Z);
@@ -137,14 +152,8 @@ TEST(gradients_and_lipschitz) {
     CHECK(isfinite(K) && K > 0, "%s: K = %g", gr_tpms_name(s), K);
     int bad = 0, over = 0;
     for (int k = 0; k < 2000; k++) {
-      double x = rnd(-5, 5), y = rnd(-5, 5), z = rnd(-5, 5), g[3], h = 1e-5;
-      gr1(f, x, y, z, g);
-      double fd[3] = {(ev(f, x + h, y, z) - ev(f, x - h, y, z)) / (2 * h),
-                      (ev(f, x, y + h, z) - ev(f, x, y - h, z)) / (2 * h),
-                      (ev(f, x, y, z + h) - ev(f, x, y, z - h)) / (2 * h)};
-      double scale = 1 + fabs(g[0]) + fabs(g[1]) + fabs(g[2]);
-      for (int i = 0; i < 3; i++)
-        if (fabs(g[i] - fd[i]) > 1e-6 * scale) bad++;
+      double x = rnd(-5, 5), y = rnd(-5, 5), z = rnd(-5, 5), g[3];
+      bad += grad_mismatch(f, x, y, z, g);
       double n = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
       if (n > K) over++;
       if (n > maxg) maxg = n;
@@ -155,6 +164,68 @@ TEST(gradients_and_lipschitz) {
     CHECK(maxg > K / 8, "%s: max |grad| %g vs K %g", gr_tpms_name(s), maxg, K);
     gr_field_free(f);
   }
+}
+
+/* Stretched cells (gr_field_tpms3): every surface against its formula with
+ * X = 2 pi/Lx (x - o_x - Lx/2), Y, Z likewise; period Lx, Ly, Lz per axis;
+ * the analytic gradient against differences and under the Lipschitz bound;
+ * grid sampling equal to point evaluation; equal lengths give gr_field_tpms
+ * exactly; a zero length is refused. */
+TEST(stretched_surfaces) {
+  srand(4);
+  gr_err e = {0};
+  for (int s = 0; s < 10; s++) {
+    double L[3] = {rnd(0.5, 5), rnd(0.5, 5), rnd(0.5, 5)}, o[3] = {rnd(-3, 3), rnd(-3, 3), rnd(-3, 3)};
+    gr_field *f = gr_field_tpms3(gr_tpms_name(s), L, o, 0, &e);
+    CHECK(f != NULL, "%s", e.msg);
+    if (!f) continue;
+    double K = gr_field_lipschitz(f);
+    int bad = 0, badper = 0, badg = 0, over = 0;
+    for (int k = 0; k < 300; k++) {
+      double x = rnd(-10, 10), y = rnd(-10, 10), z = rnd(-10, 10), g[3];
+      double v = ev(f, x, y, z);
+      double want = ref_phi(s, 2 * M_PI / L[0] * (x - o[0] - L[0] / 2), 2 * M_PI / L[1] * (y - o[1] - L[1] / 2),
+                            2 * M_PI / L[2] * (z - o[2] - L[2] / 2));
+      if (fabs(v - want) > 1e-9) bad++;
+      if (fabs(ev(f, x + L[0], y, z) - v) > 1e-9 || fabs(ev(f, x, y - L[1], z) - v) > 1e-9 ||
+          fabs(ev(f, x, y, z + 2 * L[2]) - v) > 1e-9)
+        badper++;
+      badg += grad_mismatch(f, x, y, z, g);
+      if (sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) > K) over++;
+    }
+    CHECK(bad == 0, "%s stretched: %d points differ from the formula", gr_tpms_name(s), bad);
+    CHECK(badper == 0, "%s stretched: %d points not periodic with Lx, Ly, Lz", gr_tpms_name(s), badper);
+    CHECK(badg == 0, "%s stretched: %d gradient components differ from differences", gr_tpms_name(s), badg);
+    CHECK(over == 0, "%s stretched: |grad| exceeded K = %g at %d points", gr_tpms_name(s), K, over);
+    double lo[3] = {-1, 0.5, 2}, hi[3] = {2, 1.5, 4};
+    int n[3] = {7, 5, 4}, badgrid = 0;
+    gr_grid3 *gs = gr_grid3_sample(f, lo, hi, n, &e);
+    CHECK(gs != NULL, "%s", e.msg);
+    for (int k = 0; gs && k < n[2]; k++)
+      for (int j = 0; j < n[1]; j++)
+        for (int i = 0; i < n[0]; i++)
+          if (fabs(gs->v[i + n[0] * (j + n[1] * k)] - ev(f, lo[0] + i * gs->hx, lo[1] + j * gs->hy, lo[2] + k * gs->hz)) > 1e-12)
+            badgrid++;
+    CHECK(badgrid == 0, "%s stretched: %d grid samples differ from points", gr_tpms_name(s), badgrid);
+    gr_grid3_free(gs);
+    gr_tpms_info info;
+    CHECK(gr_field_tpms_info(f, &info) && info.lengths[0] == L[0] && info.lengths[1] == L[1] && info.lengths[2] == L[2],
+          "info gives the lengths");
+    gr_field_free(f);
+  }
+  double c3[3] = {1.7, 1.7, 1.7}, z3[3] = {2, 0, 2};
+  gr_field *a = gr_field_tpms3("gyroid", c3, NULL, 0.1, &e), *b = gr_field_tpms("gyroid", 1.7, NULL, 0.1, &e);
+  int diff = 0;
+  for (int k = 0; k < 200; k++) {
+    double x = rnd(-5, 5), y = rnd(-5, 5), z = rnd(-5, 5);
+    diff += ev(a, x, y, z) != ev(b, x, y, z);
+  }
+  CHECK(diff == 0, "equal lengths: %d points differ from the cubic field", diff);
+  CHECK(gr_field_lipschitz(a) == gr_field_lipschitz(b), "equal lengths: the same bound");
+  CHECK(!strcmp(gr_field_describe(a), gr_field_describe(b)), "equal lengths: '%s'", gr_field_describe(a));
+  gr_field_free(a);
+  gr_field_free(b);
+  CHECK(gr_field_tpms3("gyroid", z3, NULL, 0, &e) == NULL && strstr(e.msg, "got 0"), "zero length: '%s'", e.msg);
 }
 
 TEST(expression_fields) {
@@ -409,6 +480,7 @@ int main(void) {
   RUN(primitive_known_points);
   RUN(all_surfaces_match_formulas_and_symmetries);
   RUN(gradients_and_lipschitz);
+  RUN(stretched_surfaces);
   RUN(expression_fields);
   RUN(callback_fields);
   RUN(combinations);

@@ -102,6 +102,10 @@ check_range "origin=1e999,0,0" origin=1e999,0,0 "parameter 'origin' must be 3 nu
 check_range "threads=1000000" threads=1000000 "parameter 'threads' must be a whole number in \[1, 64\], got 1e\+06"
 check_range "slice_cell=nan" slice_cell=nan "parameter 'slice_cell' must be auto \(hatch/2\) or a number in \[0.0005, 1\] mm"
 check_range "layer=inf" layer=inf "parameter 'layer': a finite number is expected, got 'inf'"
+for c in 2,0,2 2,2 a,b,c 2,nan,2; do # stretched cells (cell=Lx,Ly,Lz)
+  check_range "cell=$c" cell=$c "parameter 'cell' must be a number or 3 numbers in \[0.1, 100\] mm 'a,b,c', got '$c'"
+done
+check_range "cell=nan" cell=nan "parameter 'cell' must be a number in \[0.1, 100\] mm, got 'nan'"
 check_range "hatch for a 100 mm cell" "cell=100 -D hatch=0.04" "parameter 'hatch' must be at least cell/2000 = 0.05 mm"
 # NaN set by a recipe (the old sentinels meant "default")
 for k in slice_cell beam_offset skin min_length; do
