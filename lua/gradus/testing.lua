@@ -33,6 +33,23 @@ function M.raises(fn, pattern, msg)
   return err
 end
 
+--- t.tmpdir(): a new empty directory for a test file's outputs; returns its path.
+function M.tmpdir()
+  local d = os.tmpname()
+  os.remove(d)
+  package.loaded.gradus.mkdir(d)
+  return d
+end
+
+--- t.lattice_params(defaults, o): the lattice recipe's parameters with the
+-- table `defaults` and then `o` (may be nil) applied over them.
+function M.lattice_params(defaults, o)
+  local p = require("gradus.lattice").params()
+  for k, v in pairs(defaults) do p[k] = v end
+  for k, v in pairs(o or {}) do p[k] = v end
+  return p
+end
+
 function M.test(name, fn)
   local clock = package.loaded.gradus and package.loaded.gradus.clock
   local t0 = clock and clock()

@@ -8,16 +8,9 @@
 -- layer count and header follow Lz; bad cells are refused by name.
 local t = require "gradus.testing"
 local lattice = require "gradus.lattice"
-local tmp = os.tmpname()
-os.remove(tmp)
-gradus.mkdir(tmp)
+local tmp = t.tmpdir()
 
-local function params(o)
-  local p = lattice.params()
-  p.kb, p.res, p.threads = "off", 30, 2
-  for k, v in pairs(o) do p[k] = v end
-  return p
-end
+local function params(o) return t.lattice_params({ kb = "off", res = 30, threads = 2 }, o) end
 
 -- The stretched P surface of a cell Lx x Ly x Lz at the origin (the cell's
 -- centre is the TPMS origin), its gradient, and the closest point of p on it:

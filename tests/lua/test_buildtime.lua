@@ -4,15 +4,10 @@
 local t = require "gradus.testing"
 local lattice = require "gradus.lattice"
 local lasers = require "gradus.lasers"
-local tmp = os.tmpname()
-os.remove(tmp)
-gradus.mkdir(tmp)
+local tmp = t.tmpdir()
 
 local function params(o)
-  local p = lattice.params()
-  p.thickness, p.kb, p.res, p.threads, p.layers = "0.08", tmp .. "/kb", 20, 2, "1:20"
-  for k, v in pairs(o) do p[k] = v end
-  return p
+  return t.lattice_params({ thickness = "0.08", kb = tmp .. "/kb", res = 20, threads = 2, layers = "1:20" }, o)
 end
 
 local function machine(path, text)

@@ -5,9 +5,7 @@ local t = require "gradus.testing"
 local lattice = require "gradus.lattice"
 local density = require "gradus.density"
 density.RES = 48 -- coarse calibration for speed (a few 1e-4 in rho)
-local tmp = os.tmpname()
-os.remove(tmp)
-gradus.mkdir(tmp)
+local tmp = t.tmpdir()
 
 local function params(o)
   local p = lattice.params()

@@ -3,9 +3,7 @@
 -- checked against the analytic sphere the STL approximates.
 local t = require "gradus.testing"
 local lattice = require "gradus.lattice"
-local tmp = os.tmpname()
-os.remove(tmp)
-gradus.mkdir(tmp)
+local tmp = t.tmpdir()
 
 local C, R = { 4, 4, 1 }, 1.2 -- the sphere part, mm, in a box of 4 x 4 x 1 cells of 2 mm
 local HATCH = 0.05

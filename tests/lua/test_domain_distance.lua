@@ -8,9 +8,7 @@
 -- for an STL cylinder.
 local t = require "gradus.testing"
 local lattice = require "gradus.lattice"
-local tmp = os.tmpname()
-os.remove(tmp)
-gradus.mkdir(tmp)
+local tmp = t.tmpdir()
 
 local R, S, B, D = 4, 0.3, 0.025, 0.05 -- cylinder radius about (5, 5), skin, beam offset, hatch (mm)
 local SQUARED, DIST = "(x-5)^2+(y-5)^2-16", "sqrt((x-5)^2+(y-5)^2)-4"

@@ -5,9 +5,7 @@
 -- second run reuses exactly what was stored.
 local t = require "gradus.testing"
 local lattice = require "gradus.lattice"
-local tmp = os.tmpname()
-os.remove(tmp)
-gradus.mkdir(tmp)
+local tmp = t.tmpdir()
 
 local function run(dir, store)
   local p = lattice.params()

@@ -4,9 +4,7 @@
 -- voxels, islands, lasers, bad input.
 local t = require "gradus.testing"
 local lasers = require "gradus.lasers"
-local tmp = os.tmpname()
-os.remove(tmp)
-gradus.mkdir(tmp)
+local tmp = t.tmpdir()
 
 local T = "0.06 + 0.03*z" -- graded along the part's height (global z, mm)
 

@@ -4,9 +4,7 @@
 local t = require "gradus.testing"
 local plate = require "gradus.plate"
 local lattice = require "gradus.lattice"
-local tmp = os.tmpname()
-os.remove(tmp)
-gradus.mkdir(tmp)
+local tmp = t.tmpdir()
 
 local function write(name, text)
   local f = assert(io.open(tmp .. "/" .. name, "w"))

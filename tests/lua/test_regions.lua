@@ -5,9 +5,7 @@
 -- thin-wall lines; bad profiles refused at file:line.
 local t = require "gradus.testing"
 local lattice = require "gradus.lattice"
-local tmp = os.tmpname()
-os.remove(tmp)
-gradus.mkdir(tmp)
+local tmp = t.tmpdir()
 
 local function mx(...)
   local a = { ... }

@@ -4,16 +4,9 @@
 -- a range of layers); a size of whole cells is the same job as `cells`.
 local t = require "gradus.testing"
 local lattice = require "gradus.lattice"
-local tmp = os.tmpname()
-os.remove(tmp)
-gradus.mkdir(tmp)
+local tmp = t.tmpdir()
 
-local function params(o)
-  local p = lattice.params()
-  p.thickness, p.kb, p.res, p.threads = "0.08", tmp .. "/kb", 20, 2
-  for k, v in pairs(o) do p[k] = v end
-  return p
-end
+local function params(o) return t.lattice_params({ thickness = "0.08", kb = tmp .. "/kb", res = 20, threads = 2 }, o) end
 
 -- Largest x and y of the closed contours, and of the open (thin-wall) lines.
 local function extent(cli)

@@ -5,9 +5,7 @@
 -- and counted.
 local t = require "gradus.testing"
 local lasers = require "gradus.lasers"
-local tmp = os.tmpname()
-os.remove(tmp)
-gradus.mkdir(tmp)
+local tmp = t.tmpdir()
 local kb = tmp .. "/kb"
 local NL = 50
 

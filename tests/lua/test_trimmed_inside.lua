@@ -7,9 +7,7 @@
 -- (their outer corners are 4.47 mm or more from the axis) and are trimmed.
 local t = require "gradus.testing"
 local lattice = require "gradus.lattice"
-local tmp = os.tmpname()
-os.remove(tmp)
-gradus.mkdir(tmp)
+local tmp = t.tmpdir()
 
 local function run(domain)
   local p = lattice.params()
