@@ -117,9 +117,9 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
   double hx, hy, L = t->cell;
   gr_slice_grid_size(so, &nx, &ny, &hx, &hy);
   size_t nn = (size_t)nx * ny, np = (size_t)t->P * t->P;
-  double *Q = malloc(5 * nn * sizeof *Q);
+  double *Q = malloc(8 * nn * sizeof *Q);
   if (!Q) return gr_fail(e, GR_EMEM, "out of memory");
-  double *sd = Q + 3 * nn, *v = Q + 4 * nn;
+  double *sd = Q + 3 * nn, *v = Q + 4 * nn, *P = Q + 5 * nn;
   double sh[3] = {o[0] - t->oref[0], o[1] - t->oref[1], o[2] - t->oref[2]};
   const double *tq = t->q + 3 * np * q, *tsd = t->sd + np * q;
   for (int b = 0; b < ny; b++)
@@ -129,8 +129,11 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
       Q[3 * n + 1] = tq[3 * k + 1] + sh[1] + (b / t->P) * L;
       Q[3 * n + 2] = tq[3 * k + 2] + sh[2];
       sd[n] = tsd[k];
+      P[3 * n] = so->lo[0] + a * hx;
+      P[3 * n + 1] = so->lo[1] + b * hy;
+      P[3 * n + 2] = z;
     }
-  int rc = gr_offset_values(f, nn, Q, sd, v, e);
+  int rc = gr_offset_values(f, nn, P, Q, sd, v, e);
   near_ud u = {f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q};
   if (!rc) rc = gr_slice_grid(v, so, near_fn, near_eval, &u, out, e);
   free(Q);
