@@ -73,8 +73,7 @@ int gr_offset_closest(const gr_field *f, size_t n, const double *x, const double
  * gr_offset_closest of any offset field of the same surface): g = d - T(q)
  * (sheet) or sd - T(q) (network); q = NaN gives a bound of the right sign.
  * p (3n, mm; or NULL): the points themselves; then, in exact mode, where
- * |g| is within twice H's error bound plus the spread of T over H (a patch
- * with another T may decide the sign), a patch of the surface nearer than q
+ * |g| is within twice H's error bound, a patch of the surface nearer than q
  * (gr_offset_closest accepts local answers up to that much too long) is
  * searched on H and replaces q and sd when found. */
 int gr_offset_values(const gr_field *f, size_t n, const double *p, double *q, double *sd,
