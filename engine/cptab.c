@@ -123,9 +123,9 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
   const int *P = t->P;
   gr_slice_grid_size(so, &nx, &ny, &hx, &hy);
   size_t nn = (size_t)nx * ny, np = (size_t)P[0] * P[1];
-  double *Q = malloc(5 * nn * sizeof *Q);
+  double *Q = malloc(8 * nn * sizeof *Q);
   if (!Q) return gr_fail(e, GR_EMEM, "out of memory");
-  double *sd = Q + 3 * nn, *v = Q + 4 * nn;
+  double *sd = Q + 3 * nn, *v = Q + 4 * nn, *pts = Q + 5 * nn;
   double sh[3] = {o[0] - t->oref[0], o[1] - t->oref[1], o[2] - t->oref[2]};
   const double *tq = t->q + 3 * np * q, *tsd = t->sd + np * q;
   for (int b = 0; b < ny; b++)
@@ -135,8 +135,11 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
       Q[3 * n + 1] = tq[3 * k + 1] + sh[1] + (b / P[1]) * t->cell[1];
       Q[3 * n + 2] = tq[3 * k + 2] + sh[2];
       sd[n] = tsd[k];
+      pts[3 * n] = so->lo[0] + a * hx;
+      pts[3 * n + 1] = so->lo[1] + b * hy;
+      pts[3 * n + 2] = z;
     }
-  int rc = gr_offset_values(f, nn, Q, sd, v, e);
+  int rc = gr_offset_values(f, nn, pts, Q, sd, v, e);
   near_ud u = {f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q};
   if (!rc) rc = gr_slice_grid(v, so, near_fn, near_eval, &u, out, e);
   free(Q);

@@ -77,13 +77,19 @@ int gr_offset_closest(const gr_field *f, size_t n, const double *x, const double
                       const double *z, double dmax, double *q, double *sd, gr_err *e);
 /* Values of offset field f from closest points and signed distances (from
  * gr_offset_closest of any offset field of the same surface): g = d - T(q)
- * (sheet) or sd - T(q) (network); q = NaN gives a bound of the right sign. */
-int gr_offset_values(const gr_field *f, size_t n, const double *q, const double *sd,
+ * (sheet) or sd - T(q) (network); q = NaN gives a bound of the right sign.
+ * p (3n, mm; or NULL): the points themselves; then, in exact mode, where
+ * |g| is within twice H's error bound, a patch of the surface nearer than q
+ * (gr_offset_closest accepts local answers up to that much too long) is
+ * searched on H and replaces q and sd when found. */
+int gr_offset_values(const gr_field *f, size_t n, const double *p, double *q, double *sd,
                      double *out, gr_err *e);
 /* f at n points, each closest point found by refining a hint (3n, mm; a
  * closest point of a nearby point, e.g. a grid neighbour) instead of searching
- * the mesh; a NaN or non-converging hint falls back to the search. Same
- * values as gr_field_eval where the hint lies in the right part of H.
+ * the mesh; a NaN or non-converging hint falls back to the search. The
+ * hint's patch of the surface is checked: where H comes nearer than the
+ * refined answer (by more than 0.1 um), that part is refined and taken
+ * when nearer (so a hint from across the medial surface does no harm).
  * grad (3n, or NULL): the gradient of the distance part (NaN on H). */
 int gr_offset_eval_near(const gr_field *f, size_t n, const double *x, const double *y,
                         const double *z, const double *hint, double *out, double *grad, gr_err *e);

@@ -360,6 +360,48 @@ static int on_border(const gr_ms_win *w, const double *a, const double *b) {
   return 0;
 }
 
+/* Chords whose bracket (+-half the chord along the normal) has one sign at
+ * both ends cut across a corner sharper than a right angle (the curve runs
+ * farther than half the chord from the midpoint: thick graded sheets' pores
+ * have such corners and tapering tips, narrower than a grid cell) or have
+ * no curve near them. The end on the wrong side is moved out along the
+ * normal, to 2 and 4 times as far, until the signs differ; fa, fb updated. */
+#define CHORD_REACH 2
+static int chord_extend(gr_slice_fn fn, void *ud, size_t m, double *ax, double *ay, double *bx, double *by,
+                        double *fa, double *fb, gr_err *e) {
+  double *px = malloc(2 * m * sizeof *px + 1), *pf = malloc(m * sizeof *pf + 1), *py = px + m;
+  size_t *id = malloc(m * sizeof *id + 1);
+  int rc = px && pf && id ? GR_OK : gr_fail(e, GR_EMEM, "out of memory refining chords");
+  for (int round = 1; round <= CHORD_REACH && !rc; round++) {
+    double k = (double)(1 << round); /* the moved end's distance, in half chords */
+    size_t n = 0;
+    for (size_t i = 0; i < m; i++) {
+      int in_a = fa[i] < 0, out_b = fb[i] >= 0;
+      if (in_a == out_b) continue; /* bracketed, or reversed (skipped) */
+      double mx = 0.5 * (ax[i] + bx[i]), my = 0.5 * (ay[i] + by[i]);
+      double ux = 0.5 * (bx[i] - ax[i]), uy = 0.5 * (by[i] - ay[i]);
+      double sgn = in_a ? 1 : -1; /* both inside: move b out; both outside: move a in */
+      px[n] = mx + sgn * k * ux;
+      py[n] = my + sgn * k * uy;
+      id[n++] = i;
+    }
+    if (n == 0) break;
+    if ((rc = gr_ms_eval(fn, ud, n, px, py, pf, e))) break;
+    for (size_t q = 0; q < n; q++) {
+      size_t i = id[q];
+      if (fa[i] < 0) {
+        if (pf[q] >= 0) { bx[i] = px[q]; by[i] = py[q]; fb[i] = pf[q]; }
+      } else if (pf[q] < 0) {
+        ax[i] = px[q]; ay[i] = py[q]; fa[i] = pf[q];
+      }
+    }
+  }
+  free(px);
+  free(pf);
+  free(id);
+  return rc;
+}
+
 /* Chord accuracy pass: for each ring segment, find the zero of fn on the
  * normal line through the chord midpoint (bracket +-half the chord); where
  * it lies more than chord_tol from the midpoint, insert it. Repeats until no
@@ -381,11 +423,12 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
     double *fa = malloc(n * sizeof *fa + 1), *fb = malloc(n * sizeof *fb + 1);
     double *A = malloc(2 * n * sizeof *A + 1), *B = malloc(2 * n * sizeof *B + 1);
     double *root = malloc(2 * n * sizeof *root + 1), *ipt = malloc(2 * n * sizeof *ipt + 1);
+    double *cm = malloc(2 * n * sizeof *cm + 1); /* chord midpoints, by first point */
     int *ins = calloc(n + 1, sizeof *ins);
     size_t *seg = malloc(n * sizeof *seg + 1);
     unsigned char *ok2 = NULL;
     size_t nins = 0;
-    if (!ax || !ay || !bx || !by || !fa || !fb || !A || !B || !root || !ipt || !ins || !seg) {
+    if (!ax || !ay || !bx || !by || !fa || !fb || !A || !B || !root || !ipt || !ins || !seg || !cm) {
       rc = gr_fail(e, GR_EMEM, "out of memory refining chords");
       goto pass_done;
     }
@@ -403,6 +446,7 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
         double nx = dy / L, ny = -dx / L, h = 0.5 * L; /* right normal: outside */
         ax[m] = mx - h * nx; ay[m] = my - h * ny;
         bx[m] = mx + h * nx; by[m] = my + h * ny;
+        cm[2 * (st + k)] = mx; cm[2 * (st + k) + 1] = my;
         seg[m] = st + k;
         m++;
       }
@@ -411,6 +455,7 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
     if (gfn && (rc = chord_newton(gfn, ud, tol, chord_tol, ax, ay, bx, by, seg, &m, ins, ipt, &nins, e)))
       goto pass_done;
     if ((rc = gr_ms_eval(fn, ud, m, ax, ay, fa, e)) || (rc = gr_ms_eval(fn, ud, m, bx, by, fb, e))) goto pass_done;
+    if ((rc = chord_extend(fn, ud, m, ax, ay, bx, by, fa, fb, e))) goto pass_done;
     size_t q = 0;
     for (size_t k = 0; k < m; k++) {
       if (!(fa[k] < 0 && fb[k] >= 0)) continue;
@@ -423,8 +468,7 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
     if (rc) goto pass_done;
     /* mark insertions: ins[global point index] = 1 + index into ipt */
     for (size_t k = 0; k < q; k++) {
-      double mx = 0.5 * (A[2 * k] + B[2 * k]), my = 0.5 * (A[2 * k + 1] + B[2 * k + 1]);
-      if (hypot(root[2 * k] - mx, root[2 * k + 1] - my) > chord_tol) {
+      if (hypot(root[2 * k] - cm[2 * seg[k]], root[2 * k + 1] - cm[2 * seg[k] + 1]) > chord_tol) {
         ipt[2 * nins] = root[2 * k];
         ipt[2 * nins + 1] = root[2 * k + 1];
         ins[seg[k]] = (int)++nins;
@@ -455,7 +499,7 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
     }
   pass_done:
     free(ax); free(ay); free(bx); free(by); free(fa); free(fb); free(A); free(B);
-    free(root); free(ipt); free(ins); free(seg); free(ok2);
+    free(root); free(ipt); free(ins); free(seg); free(ok2); free(cm);
     if (rc || nins == 0) break;
   }
   gr_rings_free(nr);

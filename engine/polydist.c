@@ -104,27 +104,40 @@ static int pd_fn(void *ud, size_t n, const double *x, const double *y,
   return GR_OK;
 }
 
+static int same_pt(const double *p, size_t a, size_t b) {
+  return p[2 * a] == p[2 * b] && p[2 * a + 1] == p[2 * b + 1];
+}
+
 /* Build edges and the bucket grid (bucket size about bs) of nested rings r. */
 static int pd_build(poly_dist *d, const gr_rings *r, double bs, gr_err *e) {
   memset(d, 0, sizeof *d);
-  d->ne = r->npts;
-  d->ab = malloc(4 * d->ne * sizeof *d->ab + 1);
-  d->prv = malloc(d->ne * sizeof *d->prv + 1);
-  d->nxt = malloc(d->ne * sizeof *d->nxt + 1);
-  if (!d->ab || !d->prv || !d->nxt) return gr_fail(e, GR_EMEM, "out of memory: %zu edges", d->ne);
+  d->ab = malloc(4 * r->npts * sizeof *d->ab + 1);
+  d->prv = malloc(r->npts * sizeof *d->prv + 1);
+  d->nxt = malloc(r->npts * sizeof *d->nxt + 1);
+  if (!d->ab || !d->prv || !d->nxt) return gr_fail(e, GR_EMEM, "out of memory: %zu edges", r->npts);
   double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
   for (size_t i = 0; i < r->nrings; i++) {
-    size_t n = gr_ring_len(r, i), st = r->start[i];
+    size_t n = gr_ring_len(r, i), st = d->ne;
     const double *p = gr_ring_xy(r, i);
-    for (size_t k = 0; k < n; k++) {
-      size_t k1 = (k + 1) % n;
-      double *a = d->ab + 4 * (st + k);
+    /* edges between distinct consecutive points only: a repeated point (a
+     * section passing exactly through a grid node, a snapped face corner)
+     * would make a zero-length edge, which has no side, and pd_inside at
+     * its vertex would read "outside" from it (spurious offset points) */
+    size_t s0 = 0;
+    while (s0 < n && same_pt(p, s0, (s0 + n - 1) % n)) s0++;
+    for (size_t c = 0; c < n && s0 < n; c++) {
+      size_t k = (s0 + c) % n, k1 = (k + 1) % n;
+      if (same_pt(p, k, k1)) continue;
+      double *a = d->ab + 4 * d->ne++;
       a[0] = p[2 * k]; a[1] = p[2 * k + 1]; a[2] = p[2 * k1]; a[3] = p[2 * k1 + 1];
-      d->prv[st + k] = st + (k + n - 1) % n;
-      d->nxt[st + k] = st + k1;
-      for (int c = 0; c < 2; c++) { lo[c] = fmin(lo[c], a[c]); hi[c] = fmax(hi[c], a[c]); }
+      for (int q = 0; q < 2; q++) { lo[q] = fmin(lo[q], a[q]); hi[q] = fmax(hi[q], a[q]); }
+    }
+    for (size_t q = st; q < d->ne; q++) {
+      d->prv[q] = q > st ? q - 1 : d->ne - 1;
+      d->nxt[q] = q + 1 < d->ne ? q + 1 : st;
     }
   }
+  if (d->ne == 0) lo[0] = lo[1] = hi[0] = hi[1] = 0; /* no edges: one bucket */
   double w = fmax(hi[0] - lo[0], hi[1] - lo[1]);
   if (!(bs > 0)) bs = w / 16;
   /* at most ~4 buckets per edge and 4M buckets */

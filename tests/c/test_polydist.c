@@ -64,8 +64,87 @@ TEST(within_analytic) {
   gr_rings_free(r);
 }
 
+
+/* A section stepping on a face (solid below y = 0.35 left of x = 2, below
+ * 0.4 right of it), its reflex corner (2, 0.35) repeated `rep` times, as a
+ * section passing exactly through a grid node gives it (gyroid network
+ * stepped across x, layer 38 of the quality block: a spurious contour point
+ * at 2 b below the corner kept a contour open). */
+static const double STEP_XY[] = {1.5, 0, 2.5, 0, 2.5, 0.4, 2, 0.4, 2, 0.35, 1.5, 0.35};
+static gr_rings *step_ring(int rep) {
+  gr_rings *r = gr_rings_new();
+  for (int k = 0; k < 6; k++)
+    for (int c = 0; c < (k == 4 ? rep : 1); c++) gr_rings_point(r, STEP_XY[2 * k], STEP_XY[2 * k + 1]);
+  gr_rings_close(r);
+  return r;
+}
+
+/* The analytic signed distance to that section (negative inside). */
+static double step_dist(double x, double y) {
+  double best = INFINITY;
+  for (int k = 0; k < 6; k++) {
+    const double *a = STEP_XY + 2 * k, *b = STEP_XY + 2 * ((k + 1) % 6);
+    double ex = b[0] - a[0], ey = b[1] - a[1], t = ((x - a[0]) * ex + (y - a[1]) * ey) / (ex * ex + ey * ey);
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    best = fmin(best, hypot(a[0] + t * ex - x, a[1] + t * ey - y));
+  }
+  int in = x > 1.5 && x < 2.5 && y > 0 && y < (x < 2 ? 0.35 : 0.4);
+  return in ? -best : best;
+}
+
+/* Points around the corner of r (81 x 81, 2.5 um apart) whose side (the
+ * sign of gr_polydist_at) differs from the analytic one: *bad of *n; *worst:
+ * the largest distance error. */
+static void corner_signs(const gr_rings *r, int *bad, int *n, double *worst) {
+  gr_err e;
+  gr_err_clear(&e);
+  gr_polydist *pd = gr_polydist_new(r, 0.025, &e);
+  *bad = *n = 0;
+  *worst = pd ? 0 : INFINITY;
+  for (int i = -40; i <= 40 && pd; i++)
+    for (int j = -40; j <= 40; j++) {
+      double x = 2 + i * 0.0025, y = 0.35 + j * 0.0025, v = gr_polydist_at(pd, x, y, NULL), w = step_dist(x, y);
+      if (fabs(w) < 1e-12) continue;
+      ++*n;
+      *bad += (v < 0) != (w < 0);
+      *worst = fmax(*worst, fabs(fabs(v) - fabs(w)));
+    }
+  gr_polydist_free(pd);
+}
+
+TEST(repeated_corner_points) {
+  for (int rep = 1; rep <= 3; rep++) {
+    gr_rings *r = step_ring(rep);
+    gr_err e;
+    gr_err_clear(&e);
+    int bad, n;
+    double worst;
+    corner_signs(r, &bad, &n, &worst);
+    CHECK(bad == 0 && worst < 1e-12, "corner repeated %d times: %d of %d signs wrong, distance off by %.3g", rep, bad, n,
+          worst);
+    /* its offset by b = 0.025 on a grid of 0.025 mm (the corner on a node),
+     * chords refined: every point at b from the section, an arc around the
+     * corner (points within b + 1 um of it, none nearer) */
+    gr_rings *o = gr_rings_new();
+    int rc = gr_offset_rings_opt(r, 0.025, 0.025, 1e-6, 2e-4, o, &e);
+    CHECK(rc == 0, "%s", e.msg);
+    double off = 0, nearest = INFINITY;
+    for (size_t k = 0; k < o->npts; k++) {
+      double x = o->xy[2 * k], y = o->xy[2 * k + 1];
+      off = fmax(off, fabs(step_dist(x, y) + 0.025));
+      nearest = fmin(nearest, hypot(x - 2, y - 0.35));
+    }
+    CHECK(o->nrings == 1 && off < 1e-6 && fabs(nearest - 0.025) < 1e-6,
+          "corner repeated %d times: %zu rings, a point %.3g um off b, nearest to the corner %.4f mm", rep, o->nrings,
+          off * 1e3, nearest);
+    gr_rings_free(o);
+    gr_rings_free(r);
+  }
+}
+
 int main(void) {
   RUN(within_matches_the_distance);
   RUN(within_analytic);
+  RUN(repeated_corner_points);
   DONE();
 }
