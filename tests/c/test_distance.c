@@ -599,7 +599,7 @@ TEST(thick_sheet_nearest_patch) {
   gr_field *phi = gr_field_tpms("iwp", 2, NULL, 0, &e);
   gr_offset_opts o = gr_offset_defaults();
   o.surface = phi;
-  o.cell = 2;
+  o.cell[0] = o.cell[1] = o.cell[2] = 2;
   o.box_lo[0] = 2; o.box_lo[1] = 1; o.box_lo[2] = 0;
   o.box_hi[0] = 4; o.box_hi[1] = 3; o.box_hi[2] = 2;
   o.margin = 0.2;
