@@ -36,6 +36,7 @@ typedef struct offset {
   double maxt;        /* max T over H's vertices (with a 20 % reserve) */
   double tmax;        /* max T over H's vertices */
   double herr;        /* bound on the distance between H's mesh and phi = 0 */
+  double reach;       /* below this distance a local closest point is the closest (mm) */
   gr_field *like;     /* the offset field whose H and BVH are shared, or NULL */
   gr_dtable *dens;    /* density -> T table, or NULL */
   double shift[3];    /* H = the shared mesh translated by this, mm */
@@ -51,7 +52,7 @@ static void offset_free(void *ud) {
   offset *f = ud;
   if (!f) return;
   if (getenv("GRADUS_DEBUG"))
-    fprintf(stderr, "offset field: %ld calls, %ld points, %ld BVH queries, %ld refinements\n", f->ncalls, f->npts, f->nquery, f->nrefine);
+    fprintf(stderr, "offset field: %ld calls, %ld points, %ld BVH queries, %ld refinements, reach %.4g mm\n", f->ncalls, f->npts, f->nquery, f->nrefine, f->reach);
   gr_field_free(f->phi);
   gr_mesh_free(f->own);
   if (!f->like) gr_bvh_free(f->bvh);
@@ -256,6 +257,7 @@ static double dist3(const double p[3], const double q[3]) {
  * replaces q when it is nearer. Returns the distance |p - q|. */
 static double nearest_patch(const offset *f, const double p[3], double q[3], double tol) {
   double d = dist3(p, q);
+  if (d < f->reach) return d; /* within the reach: no other patch can be nearer */
   gr_hit c;
   closest_h(f, p, d - tol, &c);
   if (c.tri < 0 || !(exact_newton(f, p, c.q) || exact_refine(f, p, c.q))) return d;
@@ -710,6 +712,57 @@ static void offset_touch_warning(offset *f, const gr_offset_opts *o, int shared,
   }
 }
 
+/* The exact closest point of p (H's nearest part refined), or 0. */
+static int exact_foot(const offset *f, const double p[3], double q[3]) {
+  gr_hit h;
+  closest_h(f, p, INFINITY, &h);
+  if (h.tri < 0 || !exact_refine(f, p, h.q)) return 0;
+  memcpy(q, h.q, sizeof h.q);
+  return 1;
+}
+
+/* A lower estimate of the surface's reach (mm): along the normals of a
+ * sample of H's vertices (every 29th, both sides), how far a point keeps its
+ * foot, by bisection, times REACH_SAFETY. A point nearer to the surface than
+ * the reach has one closest point, and a local closest point (Newton from a
+ * hint) nearer than it is that one: thin walls skip the nearer-patch search. */
+#define REACH_SAFETY 0.6
+static double reach_estimate(const offset *f, const gr_offset_opts *o, size_t nv, const double *vx, const double *vy,
+                             const double *vz) {
+  double L = gr_cell_min(o->cell), best = 0.5 * L, eps = 0.2 * f->herr;
+  size_t used = 0;
+  for (size_t i = 0; i < nv; i += 29) {
+    double s[3] = {vx[i], vy[i], vz[i]}, g[3];
+    int inbox = 1;
+    for (int a = 0; a < 3; a++) inbox &= s[a] >= o->box_lo[a] && s[a] <= o->box_hi[a];
+    if (!inbox) continue;
+    gr_err e;
+    for (int it = 0; it < 6; it++) { /* onto phi = 0 */
+      double v;
+      if (gr_field_eval_grad(f->phi, 1, &s[0], &s[1], &s[2], &v, &g[0], &g[1], &g[2], &e)) break;
+      double g2 = gr_dot3(g, g);
+      if (!(g2 > 1e-300)) break;
+      for (int a = 0; a < 3; a++) s[a] -= v * g[a] / g2;
+    }
+    if (gr_field_grad(f->phi, 1, &s[0], &s[1], &s[2], &g[0], &g[1], &g[2], &e)) continue;
+    double gn = sqrt(gr_dot3(g, g));
+    if (!(gn > 0)) continue;
+    used++;
+    for (int sg = -1; sg <= 1; sg += 2) {
+      double lo = 0, hi = best; /* keeps its foot at lo; hi: not known */
+      for (int it = 0; it < 12 && hi - lo > 1e-3 * L; it++) {
+        double r = 0.5 * (lo + hi), p[3], q[3];
+        for (int a = 0; a < 3; a++) p[a] = s[a] + sg * r * g[a] / gn;
+        if (exact_foot(f, p, q) && dist3(q, s) < eps) lo = r; else hi = r;
+      }
+      double p[3], q[3];
+      for (int a = 0; a < 3; a++) p[a] = s[a] + sg * best * g[a] / gn;
+      if (hi < best || !(exact_foot(f, p, q) && dist3(q, s) < eps)) best = fmin(best, lo);
+    }
+  }
+  return used ? REACH_SAFETY * best : 0;
+}
+
 gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   if (!o->surface) return gr_fail(e, GR_EARG, "bad option 'surface' (a field is needed)"), NULL;
   for (int a = 0; a < 3; a++)
@@ -750,10 +803,11 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
     return NULL;
   }
   offset_touch_warning(f, o, lk != NULL, nv, vx, vy, vz, t);
-  free(buf);
-  f->tmax = maxt;
   double hmesh = fmax(o->cell[0], fmax(o->cell[1], o->cell[2])) / o->res; /* the coarsest mesh spacing */
   f->herr = 0.5 * hmesh;
+  f->reach = lk ? lk->reach : (o->mode == GR_DIST_EXACT ? reach_estimate(f, o, nv, vx, vy, vz) : 0);
+  free(buf);
+  f->tmax = maxt;
   f->maxt = 1.2 * maxt + 2 * hmesh;
   f->tnear = 0.5 * maxt;
   f->refine_band = 0.25 * hmesh; /* a quarter mesh spacing: far above H's error */
