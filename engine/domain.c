@@ -137,6 +137,15 @@ static int project(const dom *d, const double *x, const double *y, const double 
   return GR_OK;
 }
 
+/* Point i as the m-th projection to run, started at p itself (its value and
+ * gradient already in w at i): packed in place, m <= i, so the entries below
+ * i have been read already. */
+static void pack_start(dom_work *w, size_t m, size_t i, const double *x, const double *y, const double *z) {
+  w->act[m] = i;
+  w->qx[m] = x[i], w->qy[m] = y[i], w->qz[m] = z[i];
+  w->v[m] = w->v[i], w->gx[m] = w->gx[i], w->gy[m] = w->gy[i], w->gz[m] = w->gz[i];
+}
+
 /* With the zero set's mesh (f is not a distance): the mesh's closest point
  * within the band says how far the boundary is (nothing within the band: at
  * least the band away); the exact distance is the nearer of two projections,
@@ -166,10 +175,7 @@ static int mesh_eval(const dom *d, size_t n, const double *x, const double *y, c
     dm[i] = out[i] = h.dist;
     memcpy(mq + 3 * i, h.q, sizeof h.q);
     if (!(g > 0)) continue;
-    w->act[m] = i; /* packed in place, as in dom_eval */
-    w->qx[m] = x[i], w->qy[m] = y[i], w->qz[m] = z[i];
-    w->v[m] = v, w->gx[m] = w->gx[i], w->gy[m] = w->gy[i], w->gz[m] = w->gz[i];
-    m++;
+    pack_start(w, m++, i, x, y, z);
   }
   c->n = 0;
   int rc = project(d, x, y, z, w, m, ra, c, e);
@@ -211,10 +217,7 @@ static int plain_eval(const dom *d, size_t n, const double *x, const double *y, 
      * field's gradient would land on box corners and inner faces. */
     if (fabs(g - 1) < 1e-6) { out[i] = fabs(v); continue; }
     if (est >= d->band) { out[i] = fmax(out[i], d->band); continue; }
-    w->act[m] = i; /* packed in place: m <= i, entries below i are read already */
-    w->qx[m] = x[i], w->qy[m] = y[i], w->qz[m] = z[i];
-    w->v[m] = v, w->gx[m] = w->gx[i], w->gy[m] = w->gy[i], w->gz[m] = w->gz[i];
-    m++;
+    pack_start(w, m++, i, x, y, z);
   }
   int rc = project(d, x, y, z, w, m, out, c, e);
   return rc ? rc : check_feet(d, x, y, z, c, w, sg, out, e);
