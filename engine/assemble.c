@@ -163,7 +163,8 @@ static int hatch_voxel(gr_job *j, gr_asm_scratch *s, const gr_tlayer *tl, const 
   gr_rings_translate(s->rg, o[0], o[1]);
   gr_layer_clear(s->hl, 0);
   gr_hatch_opts ho = gr_hatch_defaults();
-  ho.spacing = j->o.hatch;
+  double d0 = gr_regions_line(j); /* the job's spacing, or finer for regions of their own (regions.h) */
+  ho.spacing = d0;
   ho.angle = a;
   ho.pattern = GR_PARALLEL;
   ho.alternate = 0;
@@ -188,7 +189,7 @@ static int hatch_voxel(gr_job *j, gr_asm_scratch *s, const gr_tlayer *tl, const 
       if (sb0 < sa0) { double tx = ax, ty = ay; ax = bx; ay = by; bx = tx; by = ty; double ts = sa0; sa0 = sb0; sb0 = ts; }
       sg->x0 = ax; sg->y0 = ay; sg->x1 = bx; sg->y1 = by;
       sg->s0 = sa0; sg->s1 = sb0;
-      sg->line = lround((-ax * sa + ay * ca) / j->o.hatch);
+      sg->line = lround((-ax * sa + ay * ca) / d0);
       sg->laser = 0;
       sg->voxel = slot;
       sg->region = GR_CORE;

@@ -1,8 +1,10 @@
 /* bind_regions.c: Lua binding of regions.h (regions with their own build
  * styles).
- *   job:regions{skin = 900, thin = 600, downskin = 1400, upskin = 900, down = 3, up = 3}
+ *   job:regions{skin = 900, thin = 600, downskin = 1400, upskin = 900, down = 3, up = 3,
+ *               downskin_hatch = 0.025}
  * Each region named gets its own CLI ids; its value is its scan speed (mm/s,
- * for the time estimates). down / up: layers looked at below / above. The
+ * for the time estimates). down / up: layers looked at below / above.
+ * <region>_hatch: that hatched region's own hatch spacing, mm. The
  * stats of job:run then hold `regions` (gr_regions_push_stats). */
 #include <math.h>
 #include <string.h>
@@ -24,14 +26,21 @@ int gr_l_job_regions(lua_State *L) {
     while (r < GR_NREGIONS && strcmp(k, gr_region_name(r))) r++;
     if (!lua_isnumber(L, -1)) return luaL_error(L, "job:regions: '%s' must be a number", k);
     double v = lua_tonumber(L, -1);
+    size_t kl = strlen(k);
+    int hr = 0; /* "<region>_hatch": that region's hatch spacing, mm */
+    while (hr < GR_NREGIONS && !(kl == strlen(gr_region_name(hr)) + 6 && !strncmp(k, gr_region_name(hr), kl - 6) &&
+                                 !strcmp(k + kl - 6, "_hatch")))
+      hr++;
     if (r < GR_NREGIONS) {
       o.mask |= 1 << r;
       o.speed[r] = v;
+    } else if (hr < GR_NREGIONS) {
+      o.hatch[hr] = v;
     } else if (!strcmp(k, "down") || !strcmp(k, "up")) {
       if (!(v >= 1 && v <= 64 && v == floor(v))) return luaL_error(L, "job:regions: '%s' must be a whole number of layers in 1..64", k);
       *(!strcmp(k, "down") ? &o.down : &o.up) = (int)v;
     } else {
-      return luaL_error(L, "job:regions: unknown key '%s' (skin, thin, downskin, upskin, down, up)", k);
+      return luaL_error(L, "job:regions: unknown key '%s' (skin, thin, downskin, upskin, down, up, <region>_hatch)", k);
     }
     lua_pop(L, 1);
   }
@@ -54,6 +63,7 @@ void gr_regions_push_stats(lua_State *L, const gr_job *j, const gr_job_stats *st
     lua_setfield(L, -2, "vectors");
     setn(L, "length", st->region_length[r]);
     setn(L, "scan_time_s", st->region_time[r]);
+    if (r != GR_THIN) setn(L, "hatch", gr_regions_hatch(j, r));
     lua_setfield(L, -2, gr_region_name(r));
   }
   lua_setfield(L, -2, "regions");

@@ -7,11 +7,40 @@
 #include <string.h>
 
 #define MAXN 64 /* layers looked at below / above */
+#define MAXDIV 16 /* the line family's spacing: the job's hatch / 1 .. MAXDIV */
+#define MAXSTEP 64 /* a region's spacing: at most MAXSTEP lines of the family */
+#define HATCHED ((1 << GR_SKIN) | (1 << GR_DOWNSKIN) | (1 << GR_UPSKIN))
 
 struct gr_regions {
   gr_regions_opts o;
+  double line;            /* the family's spacing d0, mm */
+  int step[GR_NREGIONS];  /* region r keeps lines k with k mod step[r] = 0 */
   pthread_mutex_t mu; /* domain evaluation when the field is not thread-safe */
 };
+
+/* The largest d0 = hatch / n (n <= MAXDIV) of which every spacing in s[] is a
+ * whole multiple (to 1e-6 relative) of at most MAXSTEP; its steps into step[]. */
+static int line_family(double hatch, const double *s, int mask, double *d0, int *step, gr_err *e) {
+  for (int n = 1; n <= MAXDIV; n++) {
+    double d = hatch / n;
+    int ok = 1;
+    for (int r = 0; r < GR_NREGIONS && ok; r++) {
+      double sr = (r && (mask >> r & 1) && s[r] > 0) ? s[r] : hatch, m = sr / d;
+      step[r] = (int)fmin(round(m), MAXSTEP + 1);
+      ok = step[r] >= 1 && step[r] <= MAXSTEP && fabs(m - step[r]) <= 1e-6 * m;
+    }
+    if (ok) { *d0 = d; return GR_OK; }
+  }
+  char list[256];
+  int len = snprintf(list, sizeof list, "%g (the job's)", hatch);
+  for (int r = 1; r < GR_NREGIONS; r++)
+    if ((mask >> r & 1) && s[r] > 0 && len < (int)sizeof list)
+      len += snprintf(list + len, sizeof list - (size_t)len, ", %g (%s)", s[r], gr_region_name(r));
+  return gr_fail(e, GR_EARG,
+                 "regions: the hatch spacings %s mm have no common line spacing: each must be a whole multiple "
+                 "(at most %d) of the job's hatch / n, n = 1..%d (e.g. 0.05 with 0.025, 0.1 or 0.075)",
+                 list, MAXSTEP, MAXDIV);
+}
 
 int gr_job_set_regions(gr_job *j, const gr_regions_opts *o, gr_err *e) {
   if (o->mask & ~((1 << GR_NREGIONS) - 2))
@@ -24,6 +53,21 @@ int gr_job_set_regions(gr_job *j, const gr_regions_opts *o, gr_err *e) {
     if ((o->mask >> r & 1) && !(isfinite(o->speed[r]) && o->speed[r] > 0))
       return gr_fail(e, GR_EARG, "regions: the speed of region %s must be > 0 mm/s, got %g", gr_region_name(r),
                      o->speed[r]);
+  if (o->hatch[GR_CORE] != 0 && fabs(o->hatch[GR_CORE] - j->o.hatch) > 1e-9 * j->o.hatch)
+    return gr_fail(e, GR_EARG, "regions: the core hatches at the job's spacing %g mm, got %g", j->o.hatch,
+                   o->hatch[GR_CORE]);
+  for (int r = 1; r < GR_NREGIONS; r++) {
+    if (o->hatch[r] == 0) continue;
+    if (!((o->mask >> r & 1) && (HATCHED >> r & 1)))
+      return gr_fail(e, GR_EARG, "regions: a hatch spacing for region %s, which %s", gr_region_name(r),
+                     (HATCHED >> r & 1) ? "is not asked for" : "has no hatches");
+    if (!(isfinite(o->hatch[r]) && o->hatch[r] > 0))
+      return gr_fail(e, GR_EARG, "regions: the hatch spacing of region %s must be > 0 mm, got %g", gr_region_name(r),
+                     o->hatch[r]);
+  }
+  double d0 = 0;
+  int step[GR_NREGIONS];
+  if (line_family(j->o.hatch, o->hatch, o->mask, &d0, step, e)) return e->code;
   gr_regions_free(j->regions);
   j->regions = NULL;
   for (int r = 1; r < GR_NREGIONS; r++) j->m.rspeed[r] = 0;
@@ -31,6 +75,8 @@ int gr_job_set_regions(gr_job *j, const gr_regions_opts *o, gr_err *e) {
   struct gr_regions *g = calloc(1, sizeof *g);
   if (!g) return gr_fail(e, GR_EMEM, "out of memory");
   g->o = *o;
+  g->line = d0;
+  memcpy(g->step, step, sizeof step);
   if (!(o->mask & (1 << GR_DOWNSKIN))) g->o.down = 0;
   if (!(o->mask & (1 << GR_UPSKIN))) g->o.up = 0;
   pthread_mutex_init(&g->mu, NULL);
@@ -40,6 +86,12 @@ int gr_job_set_regions(gr_job *j, const gr_regions_opts *o, gr_err *e) {
 }
 
 int gr_regions_mask(const gr_job *j) { return j->regions ? j->regions->o.mask : 0; }
+
+double gr_regions_line(const gr_job *j) { return j->regions ? j->regions->line : j->o.hatch; }
+
+double gr_regions_hatch(const gr_job *j, int r) {
+  return j->regions && r >= 0 && r < GR_NREGIONS ? j->regions->line * j->regions->step[r] : j->o.hatch;
+}
 
 void gr_regions_margin(const gr_job *j, int *below, int *above) {
   *below = j->regions ? j->regions->o.down : 0;
@@ -242,8 +294,12 @@ static int region_at(vctx *c, long k, double s, double x, double y, int *reg, gr
   return GR_OK;
 }
 
-/* Append piece [ta, tb] of segment s (parameters along it) with region reg. */
-static int put_piece(const gr_hseg *s, double ta, double tb, int reg, gr_hseg **out, size_t *n, size_t *cap, gr_err *e) {
+/* Append piece [ta, tb] of segment s (parameters along it) with region reg,
+ * unless s's line is not one of reg's (step[reg]). */
+static int put_piece(const vctx *c, const gr_hseg *s, double ta, double tb, int reg, gr_hseg **out, size_t *n,
+                     size_t *cap, gr_err *e) {
+  long m = c->j->regions->step[reg];
+  if (m > 1 && ((s->line % m) + m) % m != 0) return GR_OK;
   if (gr_grow(out, cap, *n + 1, sizeof **out)) return gr_fail(e, GR_EMEM, "out of memory");
   gr_hseg *p = &(*out)[(*n)++];
   *p = *s;
@@ -285,12 +341,12 @@ static int split_one(vctx *c, const gr_hseg *s, cutbuf *cb, gr_hseg **out, size_
     if (region_at(c, s->line, s->s0 + tm * len, p0[0] + tm * (p1[0] - p0[0]), p0[1] + tm * (p1[1] - p0[1]), &reg, e))
       return e->code;
     if (cur >= 0 && reg != cur) {
-      if (put_piece(s, ta, t0, cur, out, n, cap, e)) return e->code;
+      if (put_piece(c, s, ta, t0, cur, out, n, cap, e)) return e->code;
       ta = t0;
     }
     cur = reg;
   }
-  return put_piece(s, ta, 1, cur < 0 ? GR_CORE : cur, out, n, cap, e);
+  return put_piece(c, s, ta, 1, cur < 0 ? GR_CORE : cur, out, n, cap, e);
 }
 
 static void free_nbrs(vctx *c) {
@@ -316,7 +372,7 @@ static int prepare(vctx *c, int g, int v, const gr_hseg *sg, size_t m, gr_err *e
     if (sg[q].line < lo) lo = sg[q].line;
     if (sg[q].line > hi) hi = sg[q].line;
   }
-  c->f = (fam){dx / l, dy / l, j->o.hatch, o[0], o[1], lo, hi - lo + 1};
+  c->f = (fam){dx / l, dy / l, j->regions->line, o[0], o[1], lo, hi - lo + 1};
   c->z = gr_grid_mid(&j->grid, g);
   for (int i = 0; i < c->nbelow + c->nabove; i++)
     if (c->nb[i].state == RINGS && crossings(&c->nb[i], &c->f)) return gr_fail(e, GR_EMEM, "out of memory");
@@ -325,7 +381,7 @@ static int prepare(vctx *c, int g, int v, const gr_hseg *sg, size_t m, gr_err *e
 
 int gr_regions_split(gr_job *j, int g, int v, gr_hseg **segs, size_t *n, size_t *cap, size_t a, gr_err *e) {
   int mask = gr_regions_mask(j);
-  if (!(mask & ((1 << GR_SKIN) | (1 << GR_DOWNSKIN) | (1 << GR_UPSKIN))) || *n <= a) return GR_OK;
+  if (!(mask & HATCHED) || *n <= a) return GR_OK;
   vctx c;
   memset(&c, 0, sizeof c);
   c.j = j;

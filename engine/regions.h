@@ -33,12 +33,29 @@ typedef struct gr_regions_opts {
   int mask;                  /* bit r set: region r (GR_SKIN..GR_UPSKIN) has its own style */
   int down, up;              /* layers looked at below / above, 1..64 */
   double speed[GR_NREGIONS]; /* scan speed per region, mm/s (index 0 unused: the machine's) */
+  double hatch[GR_NREGIONS]; /* hatch spacing of a hatched region (skin, downskin, upskin), mm;
+                                0: the job's. Index 0 (core) must be 0 or the job's. */
 } gr_regions_opts;
 
 /* Give job j its regions (copied). Errors (GR_EARG): an unknown region bit,
- * layers outside 1..64, a speed not finite and > 0 for a region asked for.
+ * layers outside 1..64, a speed not finite and > 0 for a region asked for,
+ * a hatch spacing on a region without hatches, not finite and > 0, or with
+ * no common line spacing with the job's (below).
+ *
+ * Hatch spacings per region: every hatch line of a layer lies on one global
+ * family k * d0 (contract s.5); d0 is the largest job hatch / n (n = 1..16)
+ * of which every region's spacing is a whole multiple m_r <= 64 (0.05 and
+ * 0.025: d0 0.025; 0.05 and 0.075: d0 0.025). Voxels are hatched at d0 and a
+ * piece of region r is kept only on lines k with k mod m_r = 0, so each
+ * region's lines are exactly its spacing apart, on the same global family
+ * in every voxel, and joined across voxels as before.
  * Call after the machine is set (gr_job_set_machine resets the speeds). */
 int gr_job_set_regions(gr_job *j, const gr_regions_opts *o, gr_err *e);
+/* The spacing d0 of the line family the voxels are hatched on, mm (the
+ * job's hatch spacing without regions of their own spacing). */
+double gr_regions_line(const gr_job *j);
+/* The hatch spacing of region r's lines, mm (d0 times its step). */
+double gr_regions_hatch(const gr_job *j, int r);
 /* The regions asked for (bit mask, 0 = none). */
 int gr_regions_mask(const gr_job *j);
 /* Layers below and above the layer range [ga, gb] that the down- and
@@ -47,7 +64,8 @@ void gr_regions_margin(const gr_job *j, int *below, int *above);
 void gr_regions_free(struct gr_regions *r);
 /* Cut the hatch segments (*segs)[a .. *n) of voxel v (row slot order kept,
  * each segment replaced by its pieces in order) in global layer g by
- * region; pieces tagged in gr_hseg.region. No-op without regions. */
+ * region; pieces tagged in gr_hseg.region, those off their region's lines
+ * (k mod m_r != 0) dropped. No-op without regions. */
 int gr_regions_split(gr_job *j, int g, int v, gr_hseg **segs, size_t *n, size_t *cap, size_t a, gr_err *e);
 /* Tag the thin-wall centre lines of an assembled layer GR_THIN (when asked). */
 void gr_regions_tag_thin(const gr_job *j, gr_layer *l);

@@ -310,7 +310,7 @@ local function run(p, out)
         kind = kind, power = las[kind].power, speed = las[kind].speed, jump_speed = machine.jump_speed }
     end
   end
-  if rg then require("gradus.regions").styles(rg, machine, styles) end
+  if rg then require("gradus.regions").styles(rg, machine, styles, p.hatch) end
   local st, kept = job:run {
     output = out, format = format, styles = styles, name = out and out:match("([^/]+)$"),
     jump_delay = machine.jump_delay, polygon_delay = machine.polygon_delay, kb = kb ~= "off" and (kb or true) or false,

@@ -86,20 +86,28 @@ function M.load(spec)
   return prof.regions
 end
 
---- M.fit(rg, p): refuse what the hatcher cannot do yet: a region's hatch
--- spacing other than the job's (p.hatch), a contour count other than the
--- job's (p.contours). Every line of the global hatch family is one spacing
--- apart (doc/contract.md s.5), so a second spacing is refused, not ignored.
+--- M.fit(rg, p): what a region's style may change in this job. The core is
+-- the lattice: it hatches at the job's spacing (p.hatch) with the job's
+-- contour count (p.contours), so a core hatch or contour count other than
+-- those is refused (set them with -D hatch / -D contours instead). Skin,
+-- down-skin and up-skin may have their own hatch spacing (any whole multiple
+-- of the job's hatch / n, n <= 16: checked by job:regions). Contours belong
+-- to the section's outline, which every region shares: a contour count on
+-- another region is refused, not ignored.
 function M.fit(rg, p)
   for _, name in ipairs(M.NAMES) do
     local s = rg[name]
-    if s and s.hatch and math.abs(s.hatch - p.hatch) > 1e-9 then
-      error(("%s: regions.%s.hatch = %g mm differs from the job's hatch spacing %g mm: a hatch spacing per region is not supported yet (remove it, or set -D hatch=%g)")
-        :format(s.hatch_at, name, s.hatch, p.hatch, s.hatch), 0)
+    if s and name == "core" and s.hatch and math.abs(s.hatch - p.hatch) > 1e-9 * p.hatch then
+      error(("%s: regions.core.hatch = %g mm differs from the job's hatch spacing %g mm: the core hatches at the job's spacing (set -D hatch=%g, or remove regions.core.hatch)")
+        :format(s.hatch_at, s.hatch, p.hatch, s.hatch), 0)
+    end
+    if s and s.contours and name ~= "core" and name ~= "contour" then
+      error(("%s: regions.%s.contours: contours follow the section's outline, which the %s shares with the core; their count is the job's (-D contours, or regions.core.contours)")
+        :format(s.contours_at, name, name), 0)
     end
     if s and s.contours and s.contours ~= p.contours then
-      error(("%s: regions.%s.contours = %d differs from the job's contours %d: a contour count per region is not supported yet")
-        :format(s.contours_at, name, s.contours, p.contours), 0)
+      error(("%s: regions.%s.contours = %d differs from the job's contours %d: the lattice's contour count is the job's (set -D contours=%d, or remove it)")
+        :format(s.contours_at, name, s.contours, p.contours, s.contours), 0)
     end
   end
 end
@@ -124,23 +132,34 @@ end
 function M.job(rg, job)
   local o = { down = rg.downskin_layers, up = rg.upskin_layers }
   for _, name in ipairs(M.OWN) do
-    if rg[name] then o[name] = rg[name].speed end
+    if rg[name] then
+      o[name] = rg[name].speed
+      if rg[name].hatch and HATCHED[name] then o[name .. "_hatch"] = rg[name].hatch end
+    end
   end
-  job:regions(o)
+  local ok, err = pcall(job.regions, job, o)
+  if not ok then
+    error(("%s: %s"):format(rg.source or "regions", tostring(err):gsub("^job:regions: ", "")), 0)
+  end
 end
 
---- M.styles(rg, machine, styles): tag the core styles region = "core" and
--- append every own region's styles (per laser, contour/hatch/edge) to
--- styles, the manifest's list.
-function M.styles(rg, machine, styles)
-  for _, s in ipairs(styles) do s.region = "core" end
+--- M.styles(rg, machine, styles, hatch): tag the core styles region = "core"
+-- and append every own region's styles (per laser, contour/hatch/edge) to
+-- styles, the manifest's list; hatch styles carry their spacing (mm; hatch:
+-- the job's spacing).
+function M.styles(rg, machine, styles, hatch)
+  for _, s in ipairs(styles) do
+    s.region = "core"
+    if s.kind == "hatch" then s.hatch = hatch end
+  end
   for _, name in ipairs(M.OWN) do
     local r = rg[name]
     if r then
       for l, las in ipairs(machine.lasers) do
         for kindi, kind in ipairs({ "contour", "hatch", "edge" }) do
           styles[#styles + 1] = { id = OWN_INDEX[name] * 48 + (l - 1) * 3 + kindi, label = las.name .. "-" .. name .. "-" .. kind,
-            laser = las.name, kind = kind, region = name, power = r.power, speed = r.speed, jump_speed = machine.jump_speed }
+            laser = las.name, kind = kind, region = name, power = r.power, speed = r.speed, jump_speed = machine.jump_speed,
+            hatch = kind == "hatch" and HATCHED[name] and (r.hatch or hatch) or nil }
         end
       end
     end

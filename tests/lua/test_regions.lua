@@ -136,6 +136,86 @@ t.test("stats: region lengths add up, scan time = length / the region's speed", 
   t.near(sum, all, 1e-6 * all, "regions' lengths = all vectors' length")
 end)
 
+-- per layer and region: the hatch length (mm) and the distinct offsets of
+-- the hatch lines across their direction (mm, rounded to 0.1 um)
+local function lines(path)
+  local cli = gradus.cli.read(path)
+  local len, off = {}, {}
+  for g, l in ipairs(cli.layers) do
+    len[g], off[g] = {}, {}
+    for _, b in ipairs(l:blocks()) do
+      if b.kind == "hatch" then
+        local p, r = b.points, b.region
+        off[g][r] = off[g][r] or {}
+        for q = 1, #p, 4 do
+          local dx, dy = p[q + 2] - p[q], p[q + 3] - p[q + 1]
+          local n = math.sqrt(dx * dx + dy * dy)
+          len[g][r] = (len[g][r] or 0) + n
+          off[g][r][math.floor(math.abs(-p[q] * dy + p[q + 1] * dx) / n * 1e4 + 0.5)] = true
+        end
+      end
+    end
+  end
+  return len, off, cli
+end
+
+t.test("own hatch spacings: down-skin at 0.05 mm, up-skin at 0.2 mm, skin at the job's 0.1 mm", function()
+  local path = tmp .. "/spacing.yaml"
+  local f = io.open(path, "w")
+  f:write("regions:\n  skin: {power: 200, speed: 1250}\n  downskin: {power: 100, speed: 1500, hatch: 0.05}\n" ..
+    "  upskin: {power: 150, speed: 1000, hatch: 0.2}\n")
+  f:close()
+  local o2 = tmp .. "/spacing.cli"
+  local s2 = lattice.run(params { regions = path }, o2)
+  local len, off, cli = lines(o2)
+  local want = { skin = 0.1, downskin = 0.05, upskin = 0.2 }
+  local seen = {}
+  for g = 1, #len do
+    for r, set in pairs(off[g]) do
+      local v = {}
+      for k in pairs(set) do v[#v + 1] = k end
+      table.sort(v)
+      local lo, off = math.huge, 0 -- the smallest gap; the largest distance of a gap from a whole multiple
+      for i = 2, #v do
+        local d = (v[i] - v[i - 1]) * 1e-4
+        lo = math.min(lo, d)
+        off = math.max(off, math.abs(d - want[r] * math.floor(d / want[r] + 0.5)))
+      end
+      if #v > 1 then
+        seen[r] = true
+        t.ok(math.abs(lo - want[r]) < 2e-4 and off < 2e-4,
+          ("layer %d %s: lines %.4f mm apart (gaps off a multiple by %.1g), want %.2f"):format(g, r, lo, off, want[r]))
+      end
+    end
+    -- the areas of test 1 and 2, each region's length times its own spacing
+    if g >= 21 and g <= 23 then
+      t.near((len[g].downskin or 0) * 0.05, (3 - 2 * h) * 2, 0.05, ("layer %d: down-skin area at 0.05 mm"):format(g))
+    end
+    if g >= 24 then
+      t.near((len[g].upskin or 0) * 0.2, (3 - 2 * h) ^ 2, 0.2 * 3, ("layer %d: up-skin area at 0.2 mm"):format(g))
+    end
+  end
+  t.ok(seen.skin and seen.downskin and seen.upskin, "every region's spacing measured")
+  t.eq(s2.regions.downskin.hatch, 0.05, "stats: down-skin spacing")
+  t.eq(s2.regions.upskin.hatch, 0.2, "stats: up-skin spacing")
+  local _, _, base = lines(out)
+  local same = true
+  for g = 1, 20 do
+    local a, b = base.layers[g]:blocks(), cli.layers[g]:blocks()
+    if #a ~= #b then same = false end
+    for i = 1, math.min(#a, #b) do
+      if a[i].id ~= b[i].id or #a[i].points ~= #b[i].points then same = false break end
+      for q = 1, #a[i].points do if a[i].points[q] ~= b[i].points[q] then same = false break end end
+    end
+  end
+  t.ok(same, "layers 1-20 (no down- or up-skin) scan exactly as with the job's one spacing")
+  local man = gradus.yaml.load(tmp .. "/spacing.manifest.yaml")
+  local hs = {}
+  for _, sty in ipairs(man.styles) do if sty.kind == "hatch" then hs[sty.region] = sty.hatch end end
+  t.ok(hs.core == 0.1 and hs.skin == 0.1 and hs.downskin == 0.05 and hs.upskin == 0.2,
+    "the manifest gives each hatch style its spacing")
+end)
+
 local function body(path)
   local s = io.open(path, "rb"):read("a")
   return (s:gsub("%$%$DATE/%d+", ""))
@@ -225,8 +305,12 @@ t.test("bad profiles: file:line, nothing written", function()
     "bad.yaml:2:%d+: regions.skin.power must be a positive number", "negative power")
   t.raises(function() lattice.run(params { regions = profile("regions:\n  skin: {power: 5, speed: 900, focus: 1}\n") }, bad) end,
     "bad.yaml:2:%d+: unknown key 'focus'", "unknown key in a style")
-  t.raises(function() lattice.run(params { regions = profile("regions:\n  skin: {power: 5, speed: 900, hatch: 0.08}\n") }, bad) end,
-    "bad.yaml:2:%d+: regions.skin.hatch = 0.08 mm differs.*not supported", "a second hatch spacing is refused, not ignored")
+  t.raises(function() lattice.run(params { regions = profile("regions:\n  skin: {power: 5, speed: 900, hatch: 0.0123}\n") }, bad) end,
+    "bad.yaml: regions: the hatch spacings 0.1 %(the job's%), 0.0123 %(skin%) mm have no common line spacing", "incommensurate spacings")
+  t.raises(function() lattice.run(params { regions = profile("regions:\n  core: {power: 5, speed: 900, hatch: 0.08}\n") }, bad) end,
+    "bad.yaml:2:%d+: regions.core.hatch = 0.08 mm differs from the job's hatch spacing 0.1 mm", "core spacing is the job's")
+  t.raises(function() lattice.run(params { regions = profile("regions:\n  downskin: {power: 5, speed: 900, contours: 2}\n") }, bad) end,
+    "bad.yaml:2:%d+: regions.downskin.contours: contours follow the section's outline", "contours on a shared outline")
   t.raises(function() lattice.run(params { regions = profile("regions:\n  thin: {power: 5, speed: 900, hatch: 0.1}\n") }, bad) end,
     "bad.yaml:2:%d+: regions.thin.hatch: the thin region has no hatches", "hatch where there is none")
   t.raises(function() lattice.run(params { regions = profile("regions:\n  downskin_layers: 0\n") }, bad) end,
