@@ -17,13 +17,19 @@ struct gr_bvh {
   int nnode;
   uint32_t *tri;   /* triangle order */
   double *cen;     /* centroids 3*nf */
+  double *box;     /* triangle boxes 6*nf: lo[3], hi[3] (while building) */
 };
 
-static void tri_box(const gr_mesh *m, uint32_t t, double lo[3], double hi[3]) {
-  for (int a = 0; a < 3; a++) { lo[a] = INFINITY; hi[a] = -INFINITY; }
+/* min / max of finite numbers (the vertices are checked), inlined: the
+ * build visits every triangle's box once per tree level. */
+static inline double lo2(double a, double b) { return b < a ? b : a; }
+static inline double hi2(double a, double b) { return b > a ? b : a; }
+
+static void tri_box(const gr_mesh *m, uint32_t t, double *box) {
+  for (int a = 0; a < 3; a++) { box[a] = INFINITY; box[3 + a] = -INFINITY; }
   for (int k = 0; k < 3; k++) {
     const double *v = m->v + 3 * m->f[3 * t + k];
-    for (int a = 0; a < 3; a++) { lo[a] = fmin(lo[a], v[a]); hi[a] = fmax(hi[a], v[a]); }
+    for (int a = 0; a < 3; a++) { box[a] = lo2(box[a], v[a]); box[3 + a] = hi2(box[3 + a], v[a]); }
   }
 }
 
@@ -33,14 +39,13 @@ static int build(gr_bvh *b, int first, int count) {
   for (int a = 0; a < 3; a++) { n->lo[a] = INFINITY; n->hi[a] = -INFINITY; }
   double clo[3] = {INFINITY, INFINITY, INFINITY}, chi[3] = {-INFINITY, -INFINITY, -INFINITY};
   for (int i = first; i < first + count; i++) {
-    double lo[3], hi[3];
-    tri_box(b->m, b->tri[i], lo, hi);
+    const double *bx = b->box + 6 * (size_t)b->tri[i];
     for (int a = 0; a < 3; a++) {
-      n->lo[a] = fmin(n->lo[a], lo[a]);
-      n->hi[a] = fmax(n->hi[a], hi[a]);
+      n->lo[a] = lo2(n->lo[a], bx[a]);
+      n->hi[a] = hi2(n->hi[a], bx[3 + a]);
       double c = b->cen[3 * b->tri[i] + a];
-      clo[a] = fmin(clo[a], c);
-      chi[a] = fmax(chi[a], c);
+      clo[a] = lo2(clo[a], c);
+      chi[a] = hi2(chi[a], c);
     }
   }
   if (count <= 4) {
@@ -80,13 +85,17 @@ gr_bvh *gr_bvh_new(const gr_mesh *m, gr_err *e) {
   b->node = malloc(2 * m->nf * sizeof *b->node);
   b->tri = malloc(m->nf * sizeof *b->tri);
   b->cen = malloc(3 * m->nf * sizeof *b->cen);
-  if (!b->node || !b->tri || !b->cen) { gr_bvh_free(b); return gr_fail(e, GR_EMEM, "out of memory for BVH"), NULL; }
+  b->box = malloc(6 * m->nf * sizeof *b->box);
+  if (!b->node || !b->tri || !b->cen || !b->box) { gr_bvh_free(b); return gr_fail(e, GR_EMEM, "out of memory for BVH"), NULL; }
   for (size_t t = 0; t < m->nf; t++) {
     b->tri[t] = (uint32_t)t;
+    tri_box(m, (uint32_t)t, b->box + 6 * t);
     for (int a = 0; a < 3; a++)
       b->cen[3 * t + a] = (m->v[3 * m->f[3 * t] + a] + m->v[3 * m->f[3 * t + 1] + a] + m->v[3 * m->f[3 * t + 2] + a]) / 3;
   }
   build(b, 0, (int)m->nf);
+  free(b->box);
+  b->box = NULL;
   return b;
 }
 
@@ -95,6 +104,7 @@ void gr_bvh_free(gr_bvh *b) {
   free(b->node);
   free(b->tri);
   free(b->cen);
+  free(b->box);
   free(b);
 }
 
