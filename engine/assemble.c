@@ -6,6 +6,7 @@
 #include <string.h>
 #include "clip.h"
 #include "facestep.h"
+#include "facing.h"
 #include "hatch.h"
 #include "lasers.h"
 #include "regions.h"
@@ -504,6 +505,7 @@ int gr_asm_layer(gr_job *j, int g, gr_asm_scratch *s, gr_layer *out, gr_err *e) 
   for (size_t r = 0; r < s->nseg; r++) s->segs[r].laser = s->vlas[s->segs[r].voxel];
   rc = j->o.pattern == GR_PATTERN_ISLAND ? emit_islands(j, s, j->rowcount[gr_grid_layer_row(&j->grid, g)], out, e)
                                          : emit_continuous(j, s, out, e);
+  if (rc == GR_OK) rc = gr_facing_contours(j, g, out, e);
   if (rc == GR_OK) gr_regions_tag_thin(j, out);
   return rc;
 }

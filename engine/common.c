@@ -34,6 +34,15 @@ int gr_grow(void *pp, size_t *cap, size_t need, size_t elsize) {
   return GR_OK;
 }
 
+int gr_trip_push(gr_trip *t, double a, double b, double c) {
+  if (gr_grow(&t->p, &t->cap, t->n + 1, 3 * sizeof *t->p)) return GR_EMEM;
+  t->p[3 * t->n] = a;
+  t->p[3 * t->n + 1] = b;
+  t->p[3 * t->n + 2] = c;
+  t->n++;
+  return GR_OK;
+}
+
 const char *gr_output_refusal(const char *path) {
   struct stat st;
   if (lstat(path, &st) != 0) return NULL; /* absent (or unreachable: the open says why) */

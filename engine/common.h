@@ -39,6 +39,14 @@ static inline double gr_len2d(double dx, double dy) { return sqrt(dx * dx + dy *
  * Returns GR_OK or GR_EMEM (then *p is unchanged). */
 int gr_grow(void *pp, size_t *cap, size_t need, size_t elsize);
 
+/* A growable list of number triples (p[3 k], p[3 k + 1], p[3 k + 2]). */
+typedef struct gr_trip {
+  double *p;
+  size_t n, cap;
+} gr_trip;
+/* Append (a, b, c): GR_OK or GR_EMEM (t unchanged). */
+int gr_trip_push(gr_trip *t, double a, double b, double c);
+
 /* Atomic output: write into a temporary file beside `path`, then rename it
  * into place, so a reader never sees a half-written file and a failure leaves
  * nothing behind. */

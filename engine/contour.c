@@ -196,19 +196,8 @@ typedef struct thin_grid {
   unsigned char *mark;  /* 1 sliver node, 2 visited (flood), 4 claimed by a trace */
 } thin_grid;
 
-typedef struct thin_line {
-  double *p;            /* x, y, depth (-D) per point */
-  size_t n, cap;
-} thin_line;
-
-static int tl_push(thin_line *t, double x, double y, double dep) {
-  if (gr_grow(&t->p, &t->cap, t->n + 1, 3 * sizeof *t->p)) return GR_EMEM;
-  t->p[3 * t->n] = x;
-  t->p[3 * t->n + 1] = y;
-  t->p[3 * t->n + 2] = dep;
-  t->n++;
-  return GR_OK;
-}
+typedef gr_trip thin_line; /* x, y, depth (-D) per point */
+#define tl_push gr_trip_push
 
 /* 1D squared distance transform of f (n samples) into d: the lower envelope
  * of the parabolas (q - p)^2 + f[p]; v, z scratch of n and n + 1. f holds 0

@@ -123,22 +123,29 @@ typedef struct nbr {
   double *s;
 } nbr;
 
-/* Layer g2's solid in the column of voxel v (rings voxel-local). */
-static int neighbour(const gr_job *j, int v, int g2, nbr *out, gr_err *e) {
-  out->r = NULL;
-  if (g2 < 1) { out->state = SOLID; return GR_OK; } /* the build plate */
-  if (g2 > j->nlayers) { out->state = VOID; return GR_OK; }
+int gr_regions_solid(const gr_job *j, int v, int g2, int section, int *state, const gr_rings **r, gr_err *e) {
+  *r = NULL;
+  *state = GR_SOLID_NONE;
+  if (g2 < 1) { *state = GR_SOLID_PLATE; return GR_OK; } /* the build plate */
+  if (g2 > j->nlayers) return GR_OK;
   int i, jj, k, kk = gr_grid_layer_row(&j->grid, g2);
   gr_grid_ijk(&j->grid, v, &i, &jj, &k);
   int v2 = i + j->grid.n[0] * (jj + j->grid.n[1] * kk);
-  out->state = VOID;
   if (j->vcls[v2] < 0) return GR_OK;
   const gr_tmpl *t = j->cls[j->vcls[v2]].t;
   int jl = g2 - gr_grid_row_first(&j->grid, kk);
   if (!t || jl < t->j0 || jl >= t->j0 + t->nl)
     return gr_fail(e, GR_EARG, "internal: regions need layer %d's template (voxel %d)", g2, v2);
-  const gr_rings *r = t->l[jl - t->j0].region;
-  if (r && r->nrings > 0) { out->state = RINGS; out->r = r; }
+  const gr_rings *rr = section ? t->l[jl - t->j0].section : t->l[jl - t->j0].region;
+  if (rr && rr->nrings > 0) { *state = GR_SOLID_RINGS; *r = rr; }
+  return GR_OK;
+}
+
+/* Layer g2's solid (hatch region) in the column of voxel v (rings voxel-local). */
+static int neighbour(const gr_job *j, int v, int g2, nbr *out, gr_err *e) {
+  int st;
+  if (gr_regions_solid(j, v, g2, 0, &st, &out->r, e)) return e->code;
+  out->state = st == GR_SOLID_PLATE ? SOLID : st == GR_SOLID_NONE ? VOID : RINGS;
   return GR_OK;
 }
 

@@ -20,8 +20,9 @@
  *  - else skin when the design domain has a skin and domain(p) >= -skin
  *    (the solid band along the domain, build.c's definition);
  *  - else core.
- * A region not asked for falls through to the next rule. Contours keep the
- * core's contour style (only thin-wall lines get their own). */
+ * A region not asked for falls through to the next rule. Contours are cut
+ * into down-skin, up-skin and core pieces by facing.h (against the
+ * neighbours' sections); thin-wall lines get their own region. */
 #ifndef GR_REGIONS_H
 #define GR_REGIONS_H
 #include "place.h"
@@ -67,6 +68,12 @@ void gr_regions_free(struct gr_regions *r);
  * region; pieces tagged in gr_hseg.region, those off their region's lines
  * (k mod m_r != 0) dropped. No-op without regions. */
 int gr_regions_split(gr_job *j, int g, int v, gr_hseg **segs, size_t *n, size_t *cap, size_t a, gr_err *e);
+/* Layer g2's solid in the column of voxel v into *state: GR_SOLID_PLATE
+ * below layer 1, GR_SOLID_NONE above the part or where the column is empty,
+ * else GR_SOLID_RINGS with *r the template layer's section (section = 1) or
+ * hatch region (0), voxel-local. GR_EARG when the template is missing. */
+enum { GR_SOLID_PLATE = 0, GR_SOLID_NONE = 1, GR_SOLID_RINGS = 2 };
+int gr_regions_solid(const gr_job *j, int v, int g2, int section, int *state, const gr_rings **r, gr_err *e);
 /* Tag the thin-wall centre lines of an assembled layer GR_THIN (when asked). */
 void gr_regions_tag_thin(const gr_job *j, gr_layer *l);
 

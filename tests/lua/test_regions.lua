@@ -83,6 +83,31 @@ t.test("T: up-skin on the top 3 layers (whole slab), skin elsewhere, no core", f
   end
 end)
 
+t.test("T: contour pieces over the overhang are down-skin, under open space up-skin, on the stem core", function()
+  local cli = gradus.cli.read(out)
+  local side = 3 - 2 * h -- the slab's contour: a square of this side
+  for g, l in ipairs(cli.layers) do
+    local len = {}
+    for _, b in ipairs(l:blocks()) do
+      if b.kind == "contour" then
+        local p = b.points
+        for q = 1, #p - 2, 2 do
+          len[b.region] = (len[b.region] or 0) + math.sqrt((p[q + 2] - p[q]) ^ 2 + (p[q + 3] - p[q + 1]) ^ 2)
+        end
+      end
+    end
+    local ds, us, co = len.downskin or 0, len.upskin or 0, len.core or 0
+    if g >= 21 and g <= 23 then -- all but the two stretches over the stem (1 mm each)
+      t.near(ds, 4 * side - 2, 1e-6, ("layer %d: down-facing contour %.6f mm = 4 x %.2f - 2"):format(g, ds, side))
+      t.near(co, 2, 1e-6, ("layer %d: the contour over the stem stays core (%.6f mm)"):format(g, co))
+    elseif g >= 24 then
+      t.near(us, 4 * side, 1e-6, ("layer %d: the whole top contour is up-facing (%.6f mm)"):format(g, us))
+    else
+      t.ok(ds == 0 and us == 0, ("layer %d: the stem's contour is neither (down %.3g, up %.3g)"):format(g, ds, us))
+    end
+  end
+end)
+
 t.test("T: a layer range reads the layers around it (21:26 as in the whole job)", function()
   local o2 = tmp .. "/r.cli"
   lattice.run(params { layers = "21:26" }, o2)
@@ -280,11 +305,14 @@ t.test("OVF: down-skin and up-skin blocks carry lpbf_metadata.skin_type DOWN_SKI
     for _, b in ipairs(l:blocks()) do back[b.region] = (back[b.region] or 0) + 1 end
   end
   local bytes = io.open(tmp .. "/o.ovf", "rb"):read("a")
-  -- a hatch block's lpbf_metadata (101, length 2): skin_type (2) = 1 or 2, part_area VOLUME (0) omitted
+  -- a hatch block's lpbf_metadata (101, length 2): skin_type (2) = 1 or 2, part_area VOLUME (0)
+  -- omitted; a contour piece's (length 4): part_area CONTOUR (1 = 1), then skin_type
   local function count(pat) local k = 0 for _ in bytes:gmatch(pat) do k = k + 1 end return k end
   t.ok((n.downskin or 0) > 0 and (n.upskin or 0) > 0, "the lattice has down-skin and up-skin blocks")
-  t.eq(count("\xaa\x06\x02\x10\x01"), n.downskin, "one DOWN_SKIN mark per down-skin block")
-  t.eq(count("\xaa\x06\x02\x10\x02"), n.upskin, "one UP_SKIN mark per up-skin block")
+  t.eq(count("\xaa\x06\x02\x10\x01") + count("\xaa\x06\x04\x08\x01\x10\x01"), n.downskin,
+    "one DOWN_SKIN mark per down-skin block (hatch or contour)")
+  t.eq(count("\xaa\x06\x02\x10\x02") + count("\xaa\x06\x04\x08\x01\x10\x02"), n.upskin,
+    "one UP_SKIN mark per up-skin block (hatch or contour)")
   t.eq(back.downskin, n.downskin, "the OVF reader maps DOWN_SKIN back to the down-skin region")
   t.eq(back.upskin, n.upskin, "and UP_SKIN to up-skin")
 end)
