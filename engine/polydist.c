@@ -104,6 +104,24 @@ static int pd_fn(void *ud, size_t n, const double *x, const double *y,
   return GR_OK;
 }
 
+/* The same with its gradient: the signed distance's is the unit vector from
+ * the nearest boundary point (outward), NaN on the boundary itself (the root
+ * finder then brackets instead). Along a line the distance to one edge is
+ * linear, so a Newton step lands on the offset in one step there. */
+static int pd_gfn(void *ud, size_t n, const double *x, const double *y, double *out, double *gx, double *gy,
+                  gr_err *e) {
+  (void)e;
+  const poly_dist *d = ud;
+  for (size_t k = 0; k < n; k++) {
+    double q[2], sd = pd_signed(d, x[k], y[k], q), dx = x[k] - q[0], dy = y[k] - q[1], r = sqrt(dx * dx + dy * dy);
+    out[k] = sd + d->b;
+    double s = sd < 0 ? -1 / r : 1 / r;
+    gx[k] = r > 0 ? s * dx : NAN;
+    gy[k] = r > 0 ? s * dy : NAN;
+  }
+  return GR_OK;
+}
+
 static int same_pt(const double *p, size_t a, size_t b) {
   return p[2 * a] == p[2 * b] && p[2 * a + 1] == p[2 * b + 1];
 }
@@ -323,11 +341,11 @@ int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
   if (!rc) {
     g.v = v;
     gr_rings_clear(out);
-    rc = gr_ms_contour(&g, pd_fn, NULL, &d, 1, tol, out, e);
+    rc = gr_ms_contour(&g, pd_fn, pd_gfn, &d, 1, tol, out, e);
   }
   if (!rc && chord_tol > 0) {
     gr_ms_win w = {0, {0, 0}, {0, 0}};
-    rc = gr_ms_chord_refine(out, pd_fn, NULL, &d, tol, chord_tol, &w, e);
+    rc = gr_ms_chord_refine(out, pd_fn, pd_gfn, &d, tol, chord_tol, &w, e);
   }
   if (!rc) rc = gr_rings_nest(out, e);
   free(v);
