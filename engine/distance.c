@@ -192,17 +192,13 @@ static int exact_newton(const offset *f, const double p[3], double q[3]) {
   double gs[3][3];
   for (int it = 0; it < 20; it++) {
     double v, g[3];
-    if (gr_field_eval_grad(f->phi, 1, &x[0], &x[1], &x[2], &v, &g[0], &g[1], &g[2], &e)) return 0;
+    /* the Hessian once: the start is near, so it barely changes */
+    if (it == 0 ? gr_field_hess_fd(f->phi, x, step, &v, g, gs, &e)
+                : gr_field_eval_grad(f->phi, 1, &x[0], &x[1], &x[2], &v, &g[0], &g[1], &g[2], &e))
+      return 0;
     double g2 = gr_dot3(g, g);
     if (!(g2 > 1e-300)) return 0;
     if (it == 0) lam = ((p[0] - x[0]) * g[0] + (p[1] - x[1]) * g[1] + (p[2] - x[2]) * g[2]) / g2;
-    if (it == 0) /* the Hessian once: the start is near, so it barely changes */
-      for (int a = 0; a < 3; a++) {
-        double y[3] = {x[0], x[1], x[2]};
-        y[a] += step;
-        if (gr_field_grad(f->phi, 1, &y[0], &y[1], &y[2], &gs[a][0], &gs[a][1], &gs[a][2], &e)) return 0;
-        for (int c = 0; c < 3; c++) gs[a][c] = (gs[a][c] - g[c]) / step;
-      }
     double A[4][4], b[4];
     for (int r = 0; r < 3; r++) {
       for (int c = 0; c < 3; c++) A[r][c] = (r == c) + lam * 0.5 * (gs[c][r] + gs[r][c]);

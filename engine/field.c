@@ -623,6 +623,52 @@ int gr_field_eval_grad(const gr_field *f, size_t n, const double *x, const doubl
   return GR_OK;
 }
 
+/* sin and cos of a small angle d (|d| < 1e-3: Taylor terms to d^7, exact in
+ * double precision), else libm's. */
+static void small_sincos(double d, double *s, double *c) {
+  if (fabs(d) >= 1e-3) { *s = sin(d); *c = cos(d); return; }
+  double d2 = d * d;
+  *s = d * (1 - d2 / 6 * (1 - d2 / 20 * (1 - d2 / 42)));
+  *c = 1 - d2 / 2 * (1 - d2 / 12 * (1 - d2 / 30));
+}
+
+int gr_field_hess_fd(const gr_field *f, const double p[3], double h, double *v, double g[3], double hs[3][3],
+                     gr_err *e) {
+  if (!f) return gr_fail(e, GR_EARG, "field is missing (NULL)");
+  if (!(h > 0) || !isfinite(h)) return gr_fail(e, GR_EARG, "Hessian step must be > 0, got %g", h);
+  if (f->kind != K_TPMS) {
+    int rc = gr_field_eval_grad(f, 1, &p[0], &p[1], &p[2], v, &g[0], &g[1], &g[2], e);
+    for (int a = 0; a < 3 && rc == GR_OK; a++) {
+      double y[3] = {p[0], p[1], p[2]};
+      y[a] += h;
+      rc = gr_field_grad(f, 1, &y[0], &y[1], &y[2], &hs[a][0], &hs[a][1], &hs[a][2], e);
+      for (int c = 0; c < 3 && rc == GR_OK; c++) hs[a][c] = (hs[a][c] - g[c]) / h;
+    }
+    return rc;
+  }
+  const double *w = f->w;
+  double X[3], sn[3], cs[3], gl[3];
+  for (int a = 0; a < 3; a++) {
+    X[a] = w[a] * (p[a] - (f->origin[a] + f->cell[a] / 2));
+    sn[a] = sin(X[a]);
+    cs[a] = cos(X[a]);
+  }
+  *v = tpms_trig(f->surface, sn[0], cs[0], sn[1], cs[1], sn[2], cs[2], gl) - f->level;
+  for (int c = 0; c < 3; c++) g[c] = w[c] * gl[c];
+  for (int a = 0; a < 3; a++) {
+    double sd, cd, s2[3] = {sn[0], sn[1], sn[2]}, c2[3] = {cs[0], cs[1], cs[2]}, g2[3];
+    small_sincos(w[a] * h, &sd, &cd);
+    s2[a] = sn[a] * cd + cs[a] * sd;
+    c2[a] = cs[a] * cd - sn[a] * sd;
+    tpms_trig(f->surface, s2[0], c2[0], s2[1], c2[1], s2[2], c2[2], g2);
+    for (int c = 0; c < 3; c++) hs[a][c] = (w[c] * g2[c] - g[c]) / h;
+  }
+  if (!isfinite(*v) || first_bad(3, g, hs[0], hs[1]) >= 0 || first_bad(3, hs[2], NULL, NULL) >= 0)
+    return gr_fail(e, GR_ENUM, "field %s or its derivatives are not finite at x=%.6g, y=%.6g, z=%.6g", f->desc, p[0],
+                   p[1], p[2]);
+  return GR_OK;
+}
+
 /* ---- sampling ---- */
 #define GRID_LIMIT_BYTES 4294967296.0 /* 4 GiB */
 #define SAMPLE_CHUNK 4096

@@ -90,6 +90,14 @@ int gr_field_grad(const gr_field *f, size_t n, const double *x,
 /* Value and gradient together (TPMS fields share their sines and cosines). */
 int gr_field_eval_grad(const gr_field *f, size_t n, const double *x, const double *y,
                        const double *z, double *out, double *gx, double *gy, double *gz, gr_err *e);
+/* Value, gradient and Hessian at one point p, the Hessian by forward
+ * differences of the gradient with step h (mm) along each axis: hs[a][c] =
+ * (d_c f(p + h e_a) - d_c f(p)) / h. A TPMS takes the shifted sines and
+ * cosines from p's by the angle-addition rule (one set of trigonometric calls
+ * for all four gradients); other fields evaluate the gradient four times.
+ * Errors as gr_field_eval_grad. */
+int gr_field_hess_fd(const gr_field *f, const double p[3], double h, double *v, double g[3], double hs[3][3],
+                     gr_err *e);
 
 /* ---- sampling ---- */
 /* Samples v[i + nx*(j + ny*k)] at (x0 + i*hx, y0 + j*hy, z0 + k*hz). */

@@ -475,6 +475,62 @@ TEST(concurrent_evaluation) {
   gr_field_free(a); gr_field_free(b); gr_field_free(w); gr_field_free(f);
 }
 
+/* gr_field_hess_fd: the stretched gyroid's and primitive's Hessians against
+ * their second derivatives written out (X = w (x - o - L/2), w = 2 pi / L per
+ * axis); an expression's against its exact Hessian. */
+TEST(hessian) {
+  srand(11);
+  gr_err e = {0};
+  double L[3] = {1.7, 2.4, 3.1}, o[3] = {0.3, -0.2, 1.1}, w[3];
+  for (int a = 0; a < 3; a++) w[a] = 2 * M_PI / L[a];
+  gr_field *gy = gr_field_tpms3("gyroid", L, o, 0.2, &e), *pr = gr_field_tpms3("primitive", L, o, 0, &e);
+  gr_field *ex = gr_field_expr("x*x*y + z*y - 2*z*z*z", &e);
+  CHECK(gy && pr && ex, "%s", e.msg);
+  if (!gy || !pr || !ex) return;
+  int bad = 0, bade = 0, badv = 0;
+  double worst = 0, worste = 0;
+  for (int k = 0; k < 200; k++) {
+    double p[3] = {rnd(-4, 4), rnd(-4, 4), rnd(-4, 4)}, X[3], sn[3], cs[3];
+    for (int a = 0; a < 3; a++) {
+      X[a] = w[a] * (p[a] - o[a] - L[a] / 2);
+      sn[a] = sin(X[a]);
+      cs[a] = cos(X[a]);
+    }
+    /* gyroid: phi = cx sy + cy sz + cz sx; primitive: cx + cy + cz */
+    double Hg[3][3] = {{-cs[0] * sn[1] - cs[2] * sn[0], -sn[0] * cs[1], -sn[2] * cs[0]},
+                       {-sn[0] * cs[1], -cs[0] * sn[1] - cs[1] * sn[2], -sn[1] * cs[2]},
+                       {-sn[2] * cs[0], -sn[1] * cs[2], -cs[1] * sn[2] - cs[2] * sn[0]}};
+    double Hp[3][3] = {{-cs[0], 0, 0}, {0, -cs[1], 0}, {0, 0, -cs[2]}};
+    double He[3][3] = {{2 * p[1], 2 * p[0], 0}, {2 * p[0], 0, 1}, {0, 1, -12 * p[2]}};
+    const gr_field *fs[3] = {gy, pr, ex};
+    for (int q = 0; q < 3; q++) {
+      double v, g[3], hs[3][3], gg[3];
+      if (gr_field_hess_fd(fs[q], p, 1e-6, &v, g, hs, &e)) { bad++; continue; }
+      gr1(fs[q], p[0], p[1], p[2], gg);
+      if (fabs(v - ev(fs[q], p[0], p[1], p[2])) > 1e-12 || fabs(g[0] - gg[0]) + fabs(g[1] - gg[1]) + fabs(g[2] - gg[2]) > 1e-9)
+        badv++;
+      for (int a = 0; a < 3; a++)
+        for (int c = 0; c < 3; c++) {
+          double want = q == 2 ? He[a][c] : w[a] * w[c] * (q == 0 ? Hg : Hp)[a][c];
+          double err = fabs(hs[a][c] - want) / (1 + fabs(want));
+          if (q < 2 && err > worst) worst = err;
+          if (q == 2 && err > worste) worste = err;
+          if (err > (q == 2 ? 1e-2 : 1e-4)) *(q == 2 ? &bade : &bad) += 1;
+        }
+    }
+  }
+  CHECK(badv == 0, "%d values or gradients differ from gr_field_eval / gr_field_grad", badv);
+  /* forward differences with h = 1e-6 mm: error about h |third derivative| / 2, 2.5e-5 relative here */
+  CHECK(bad == 0, "%d TPMS Hessian entries off the analytic ones by > 1e-4 (worst relative %.3g)", bad, worst);
+  /* an expression's gradient is itself by central differences: coarser */
+  CHECK(bade == 0, "%d expression Hessian entries off by > 1e-2 (worst relative %.3g)", bade, worste);
+  double v, g[3], hs[3][3], p0[3] = {0, 0, 0};
+  CHECK(gr_field_hess_fd(gy, p0, 0, &v, g, hs, &e) == GR_EARG, "a step of 0 is refused");
+  gr_field_free(gy);
+  gr_field_free(pr);
+  gr_field_free(ex);
+}
+
 int main(void) {
   RUN(catalogue_names);
   RUN(primitive_known_points);
@@ -486,5 +542,6 @@ int main(void) {
   RUN(combinations);
   RUN(grid_sampling);
   RUN(concurrent_evaluation);
+  RUN(hessian);
   DONE();
 }
