@@ -3,6 +3,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include "distance.h"
+#include "domain.h"
 
 void gr_cptab_free(gr_cptab *t) {
   if (!t) return;
@@ -115,15 +116,44 @@ static int near_fn(void *ud, size_t n, const double *x, const double *y, double 
   return near_eval(ud, n, x, y, out, NULL, NULL, e);
 }
 
-/* Section of class c's layer at z (template layer q) through the table. */
+/* A trimmed member (domain.h): the lattice part through the table, cut by
+ * the domain d with its skin; here d is evaluated at the refined points.
+ * No gradient: crossings and chords are refined by bracketing, as they
+ * were when trimmed fields were sliced on their own (with Newton steps the
+ * contours moved by up to 12 um where the skin meets the lattice). */
+typedef struct cut_ud {
+  near_ud n;
+  const gr_field *d;
+  double skin;
+} cut_ud;
+
+static int cut_fn(void *ud_, size_t n, const double *x, const double *y, double *out, gr_err *e) {
+  cut_ud *u = ud_;
+  enum { B = 256 };
+  double zb[B], dv[B];
+  int rc = near_eval(&u->n, n, x, y, out, NULL, NULL, e);
+  for (size_t s = 0; s < n && rc == GR_OK; s += B) {
+    size_t m = n - s < B ? n - s : B;
+    for (size_t i = 0; i < m; i++) zb[i] = u->n.z;
+    if (gr_field_eval(u->d, m, x + s, y + s, zb, dv, e)) return e->code;
+    gr_domain_trim_apply(m, out + s, dv, u->skin, NULL);
+  }
+  return rc;
+}
+
+/* Section of class c's layer at z (template layer q) through the table; a
+ * trimmed field's lattice part through the table, then cut by its domain,
+ * evaluated near the domain's boundary only (gr_domain_grid). */
 int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int q,
                    double z, const gr_slice_opts *so, gr_rings *out, gr_err *e) {
   int nx, ny;
-  double hx, hy;
+  double hx, hy, skin = 0;
   const int *P = t->P;
+  const gr_field *d = NULL;
+  int cut = gr_domain_trim_parts(f, &f, &d, &skin);
   gr_slice_grid_size(so, &nx, &ny, &hx, &hy);
   size_t nn = (size_t)nx * ny, np = (size_t)P[0] * P[1];
-  double *Q = malloc(8 * nn * sizeof *Q);
+  double *Q = malloc((cut ? 9 : 8) * nn * sizeof *Q);
   if (!Q) return gr_fail(e, GR_EMEM, "out of memory");
   double *sd = Q + 3 * nn, *v = Q + 4 * nn, *pts = Q + 5 * nn;
   double sh[3] = {o[0] - t->oref[0], o[1] - t->oref[1], o[2] - t->oref[2]};
@@ -140,8 +170,13 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
       pts[3 * n + 2] = z;
     }
   int rc = gr_offset_values(f, nn, pts, Q, sd, v, e);
-  near_ud u = {f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q};
-  if (!rc) rc = gr_slice_grid(v, so, near_fn, near_eval, &u, out, e);
+  if (!rc && cut) {
+    double *dv = Q + 8 * nn;
+    rc = gr_domain_grid(d, skin, z, so->lo[0], so->lo[1], hx, hy, nx, ny, dv, e);
+    if (!rc) gr_domain_trim_apply(nn, v, dv, skin, NULL);
+  }
+  cut_ud u = {{f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q}, d, skin};
+  if (!rc) rc = cut ? gr_slice_grid(v, so, cut_fn, NULL, &u, out, e) : gr_slice_grid(v, so, near_fn, near_eval, &u.n, out, e);
   free(Q);
   return rc;
 }
