@@ -127,18 +127,26 @@ typedef struct cut_ud {
   double skin;
 } cut_ud;
 
+/* The domain first: with a skin, wherever d >= -skin/2 the trimmed value is
+ * d whatever the lattice (min(g, -d - skin) <= d there), so the lattice part
+ * is evaluated only at the other points (the domain's own crossings need
+ * none of it). */
 static int cut_fn(void *ud_, size_t n, const double *x, const double *y, double *out, gr_err *e) {
   cut_ud *u = ud_;
   enum { B = 256 };
-  double zb[B], dv[B];
-  int rc = near_eval(&u->n, n, x, y, out, NULL, NULL, e);
-  for (size_t s = 0; s < n && rc == GR_OK; s += B) {
-    size_t m = n - s < B ? n - s : B;
+  double zb[B], dv[B], px[B], py[B], g[B];
+  for (size_t s = 0; s < n; s += B) {
+    size_t m = n - s < B ? n - s : B, k = 0;
     for (size_t i = 0; i < m; i++) zb[i] = u->n.z;
     if (gr_field_eval(u->d, m, x + s, y + s, zb, dv, e)) return e->code;
+    for (size_t i = 0; i < m; i++)
+      if (!(u->skin > 0 && dv[i] >= -0.5 * u->skin)) px[k] = x[s + i], py[k] = y[s + i], k++;
+    int rc = k ? near_eval(&u->n, k, px, py, g, NULL, NULL, e) : GR_OK;
+    if (rc) return rc;
+    for (size_t i = 0, c = 0; i < m; i++) out[s + i] = u->skin > 0 && dv[i] >= -0.5 * u->skin ? dv[i] : g[c++];
     gr_domain_trim_apply(m, out + s, dv, u->skin, NULL);
   }
-  return rc;
+  return GR_OK;
 }
 
 /* Section of class c's layer at z (template layer q) through the table; a
