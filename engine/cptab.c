@@ -117,34 +117,64 @@ static int near_fn(void *ud, size_t n, const double *x, const double *y, double 
 }
 
 /* A trimmed member (domain.h): the lattice part through the table, cut by
- * the domain d with its skin; here d is evaluated at the refined points.
- * No gradient: crossings and chords are refined by bracketing, as they
- * were when trimmed fields were sliced on their own (with Newton steps the
- * contours moved by up to 12 um where the skin meets the lattice). */
+ * the domain d with its skin. No gradient: crossings and chords are
+ * refined by bracketing, as they were when trimmed fields were sliced on
+ * their own (with Newton steps the contours moved by up to 12 um where the
+ * skin meets the lattice). */
 typedef struct cut_ud {
   near_ud n;
   const gr_field *d;
-  double skin;
+  double skin, hy;
+  const double *dv;        /* the domain at the grid nodes (gr_domain_grid) */
+  const unsigned char *far; /* nodes farther than skin + 3h from its boundary */
 } cut_ud;
 
-/* The domain first: with a skin, wherever d >= -skin/2 the trimmed value is
- * d whatever the lattice (min(g, -d - skin) <= d there), so the lattice part
- * is evaluated only at the other points (the domain's own crossings need
- * none of it). */
+/* Whether p lies in a grid cell with four far corners, wholly inside: d <=
+ * -A there, A = skin + 1.5h (domain.h). */
+static int far_inside(const cut_ud *u, double x, double y) {
+  double fx = (x - u->n.lo[0]) / u->n.h, fy = (y - u->n.lo[1]) / u->hy;
+  if (!(fx >= 0 && fy >= 0 && fx < u->n.nx - 1 && fy < u->n.ny - 1)) return 0;
+  size_t k = (size_t)fx + (size_t)u->n.nx * (size_t)fy, nx = (size_t)u->n.nx;
+  return u->far[k] && u->far[k + 1] && u->far[k + nx] && u->far[k + nx + 1] && u->dv[k] < 0;
+}
+
+/* The trimmed value at refined points, d evaluated only where it may
+ * decide: with a skin, wherever d >= -skin/2 the value is d whatever the
+ * lattice (min(g, -d - skin) <= d there), so g is not needed; deep inside
+ * (d <= -A) it is g wherever -A <= g <= A - skin, so d is not needed. */
 static int cut_fn(void *ud_, size_t n, const double *x, const double *y, double *out, gr_err *e) {
   cut_ud *u = ud_;
   enum { B = 256 };
-  double zb[B], dv[B], px[B], py[B], g[B];
+  double zb[B], dv[B], px[B], py[B], g[B], A = u->skin + 1.5 * fmax(u->n.h, u->hy);
+  size_t id[B];
+  unsigned char st[B]; /* 1: deep inside, 2: d known, 4: g known */
   for (size_t s = 0; s < n; s += B) {
     size_t m = n - s < B ? n - s : B, k = 0;
     for (size_t i = 0; i < m; i++) zb[i] = u->n.z;
-    if (gr_field_eval(u->d, m, x + s, y + s, zb, dv, e)) return e->code;
+    for (size_t i = 0; i < m; i++) {
+      st[i] = far_inside(u, x[s + i], y[s + i]) ? 1 : 2;
+      if (st[i] == 2) id[k] = i, px[k] = x[s + i], py[k] = y[s + i], k++;
+    }
+    if (k && gr_field_eval(u->d, k, px, py, zb, g, e)) return e->code;
+    for (size_t q = 0; q < k; q++) dv[id[q]] = g[q];
+    /* the lattice where it may decide */
+    k = 0;
     for (size_t i = 0; i < m; i++)
-      if (!(u->skin > 0 && dv[i] >= -0.5 * u->skin)) px[k] = x[s + i], py[k] = y[s + i], k++;
+      if (st[i] == 1 || !(u->skin > 0 && dv[i] >= -0.5 * u->skin)) st[i] |= 4, id[k] = i, px[k] = x[s + i], py[k] = y[s + i], k++;
     int rc = k ? near_eval(&u->n, k, px, py, g, NULL, NULL, e) : GR_OK;
     if (rc) return rc;
-    for (size_t i = 0, c = 0; i < m; i++) out[s + i] = u->skin > 0 && dv[i] >= -0.5 * u->skin ? dv[i] : g[c++];
-    gr_domain_trim_apply(m, out + s, dv, u->skin, NULL);
+    for (size_t q = 0; q < k; q++) out[s + id[q]] = g[q];
+    /* deep inside with g beyond [-A, A - skin]: d after all */
+    k = 0;
+    for (size_t i = 0; i < m; i++)
+      if (st[i] == 5 && !(out[s + i] >= -A && out[s + i] <= A - u->skin)) st[i] |= 2, id[k] = i, px[k] = x[s + i], py[k] = y[s + i], k++;
+    if (k && gr_field_eval(u->d, k, px, py, zb, g, e)) return e->code;
+    for (size_t q = 0; q < k; q++) dv[id[q]] = g[q];
+    for (size_t i = 0; i < m; i++) {
+      if (!(st[i] & 2)) continue; /* deep inside: the value is g */
+      if (!(st[i] & 4)) out[s + i] = dv[i];
+      gr_domain_trim_apply(1, out + s + i, dv + i, u->skin, NULL);
+    }
   }
   return GR_OK;
 }
@@ -178,13 +208,16 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
       pts[3 * n + 2] = z;
     }
   int rc = gr_offset_values(f, nn, pts, Q, sd, v, e);
+  double *dv = Q + 8 * nn;
+  unsigned char *far = cut ? malloc(nn) : NULL;
+  if (!rc && cut && !far) rc = gr_fail(e, GR_EMEM, "out of memory");
   if (!rc && cut) {
-    double *dv = Q + 8 * nn;
-    rc = gr_domain_grid(d, skin, z, so->lo[0], so->lo[1], hx, hy, nx, ny, dv, e);
+    rc = gr_domain_grid(d, skin, z, so->lo[0], so->lo[1], hx, hy, nx, ny, dv, far, e);
     if (!rc) gr_domain_trim_apply(nn, v, dv, skin, NULL);
   }
-  cut_ud u = {{f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q}, d, skin};
+  cut_ud u = {{f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q}, d, skin, hy, dv, far};
   if (!rc) rc = cut ? gr_slice_grid(v, so, cut_fn, NULL, &u, out, e) : gr_slice_grid(v, so, near_fn, near_eval, &u.n, out, e);
+  free(far);
   free(Q);
   return rc;
 }

@@ -512,7 +512,7 @@ static int grid_exact(const gr_field *d, const size_t *idx, size_t m, int nx, do
 }
 
 int gr_domain_grid(const gr_field *d, double skin, double z, double x0, double y0, double hx, double hy, int nx,
-                   int ny, double *dv, gr_err *e) {
+                   int ny, double *dv, unsigned char *far_out, gr_err *e) {
   int bx = (nx + GRID_BLOCK - 1) / GRID_BLOCK, by = (ny + GRID_BLOCK - 1) / GRID_BLOCK;
   size_t nb = (size_t)bx * by, nn = (size_t)nx * ny;
   double *b = malloc(7 * nb * sizeof *b);
@@ -546,6 +546,7 @@ int gr_domain_grid(const gr_field *d, double skin, double z, double x0, double y
           size_t n = p + (size_t)nx * q;
           if (far) dv[n] = c < 0 ? -a : a; /* d's sign, nearer the boundary than d */
           else idx[m++] = n;
+          if (far_out) far_out[n] = (unsigned char)far;
         }
     }
   int rc = grid_exact(d, idx, m, nx, z, x0, y0, hx, hy, dv, e);

@@ -65,9 +65,11 @@ void gr_domain_trim_apply(size_t n, double *v, const double *dv, double skin, un
  * skin + 3 K max(hx, hy) from the boundary; their nodes get d's sign and a
  * magnitude below |d| but beyond that distance (trimming with it keeps the
  * trimmed value's sign everywhere, its value wherever it is within 3 K h of
- * zero). The other blocks' nodes are evaluated exactly. Errors of d as
- * gr_field_eval gives them; GR_EMEM. */
+ * zero). The other blocks' nodes are evaluated exactly. far (nx ny, or
+ * NULL) gets 1 at the nodes not evaluated: at any point of a grid cell whose
+ * four corners are such, |d| > skin + 1.5 max(hx, hy), with the corners'
+ * sign. Errors of d as gr_field_eval gives them; GR_EMEM. */
 int gr_domain_grid(const gr_field *d, double skin, double z, double x0, double y0, double hx, double hy, int nx,
-                   int ny, double *dv, gr_err *e);
+                   int ny, double *dv, unsigned char *far, gr_err *e);
 
 #endif

@@ -89,29 +89,43 @@ TEST(distance_probed_over_box) {
 
 
 /* gr_domain_grid against d at every node: the same sign everywhere, the
- * exact value within skin + 3h of the boundary, and elsewhere a magnitude
- * between skin + 3h and |d|; returns the share of nodes not evaluated. */
+ * exact value at the nodes not marked far and within skin + 3h of the
+ * boundary, elsewhere a magnitude between skin + 3h and |d|; at a point of
+ * each cell with four far corners, |d| > skin + 1.5h with their sign.
+ * Returns the share of nodes not evaluated (far). */
 static double grid_check(const gr_field *d, double skin, int NX, int NY, const char *what) {
   gr_err e;
   gr_err_clear(&e);
   enum { N = 202 * 198 };
   double x0 = 0.013, y0 = -0.021, hx = 0.05, hy = 0.0501, z = 0.3, near = skin + 3 * 0.0501;
-  static double dv[N], full[N], x[N], y[N], zz[N];
+  static double dv[N], full[N], x[N], y[N], zz[N], cx[N], cy[N], cv[N];
+  static unsigned char far[N];
+  static int cn[N];
   if (NX * NY > N) return 0;
   for (int j = 0; j < NY; j++)
     for (int i = 0; i < NX; i++) x[i + NX * j] = x0 + i * hx, y[i + NX * j] = y0 + j * hy, zz[i + NX * j] = z;
-  CHECK(gr_domain_grid(d, skin, z, x0, y0, hx, hy, NX, NY, dv, &e) == GR_OK, "%s: %s", what, e.msg);
+  CHECK(gr_domain_grid(d, skin, z, x0, y0, hx, hy, NX, NY, dv, far, &e) == GR_OK, "%s: %s", what, e.msg);
   CHECK(gr_field_eval(d, NX * NY, x, y, zz, full, &e) == GR_OK, "%s: %s", what, e.msg);
-  int bad_sign = 0, bad_near = 0, bad_far = 0, skipped = 0;
+  int bad_sign = 0, bad_near = 0, bad_far = 0, skipped = 0, nc = 0, bad_cell = 0;
   for (int n = 0; n < NX * NY; n++) {
     bad_sign += (dv[n] < 0) != (full[n] < 0);
-    if (fabs(full[n]) <= near) bad_near += dv[n] != full[n];
-    else if (dv[n] != full[n]) bad_far += !(fabs(dv[n]) <= fabs(full[n]) + 1e-12 && fabs(dv[n]) > near);
-    skipped += dv[n] != full[n];
+    if (!far[n] || fabs(full[n]) <= near) bad_near += dv[n] != full[n];
+    else bad_far += !(fabs(dv[n]) <= fabs(full[n]) + 1e-12 && fabs(dv[n]) > near);
+    skipped += far[n];
   }
+  /* a point of every cell with four far corners (at 0.3, 0.8 of the cell) */
+  for (int j = 0; j + 1 < NY; j++)
+    for (int i = 0; i + 1 < NX; i++) {
+      int n = i + NX * j;
+      if (far[n] && far[n + 1] && far[n + NX] && far[n + NX + 1])
+        cx[nc] = x[n] + 0.3 * hx, cy[nc] = y[n] + 0.8 * hy, cn[nc++] = n;
+    }
+  CHECK(gr_field_eval(d, nc, cx, cy, zz, cv, &e) == GR_OK, "%s: %s", what, e.msg);
+  for (int k = 0; k < nc; k++) bad_cell += !(fabs(cv[k]) > skin + 1.5 * hy && (cv[k] < 0) == (dv[cn[k]] < 0));
   CHECK(bad_sign == 0, "%s: %d nodes with the wrong sign", what, bad_sign);
-  CHECK(bad_near == 0, "%s: %d nodes within %g mm of the boundary not exact", what, bad_near, near);
+  CHECK(bad_near == 0, "%s: %d nodes evaluated or within %g mm of the boundary not exact", what, bad_near, near);
   CHECK(bad_far == 0, "%s: %d far nodes outside (%g mm, |d|]", what, bad_far, near);
+  CHECK(bad_cell == 0, "%s: %d of %d points in far cells within skin + 1.5h or of another sign", what, bad_cell, nc);
   printf("    %s: %.0f %% of the nodes not evaluated\n", what, 100.0 * skipped / (NX * NY));
   return (double)skipped / (NX * NY);
 }
