@@ -60,8 +60,10 @@ void gr_domain_trim_apply(size_t n, double *v, const double *dv, double skin, un
  * dv[i + nx j] (mm), evaluated only near its boundary: one sample at the
  * centre of each block of 4 x 4 nodes and d's Lipschitz bound K (known: 1
  * for an STL solid; 1 for gr_domain_distance's wrapper, whose values hold to
- * its band; else the largest gradient at the samples x 1.5, as the
- * classification takes it) prove which blocks lie wholly farther than
+ * its band, when it has its zero-set mesh (without: every node evaluated);
+ * else the largest gradient at the samples x 1.5, as the classification
+ * takes it; a sample d refuses: every node evaluated, the error then
+ * coming from a node, if any) prove which blocks lie wholly farther than
  * skin + 3 K max(hx, hy) from the boundary; their nodes get d's sign and a
  * magnitude below |d| but beyond that distance (trimming with it keeps the
  * trimmed value's sign everywhere, its value wherever it is within 3 K h of
