@@ -494,6 +494,28 @@ static double grid_lipschitz(const gr_field *d, size_t n, const double *x, const
   return isfinite(g) && g > 0 ? GRID_LIP_SAFETY * g : INFINITY;
 }
 
+/* d at the bx x by block centres (x, y, z) into v, row by row: a centre
+ * whose distance is bounded from the last one evaluated in its row (|v| -
+ * K x their distance, beyond `reach`) gets that bound with its sign instead
+ * (a far region costs one evaluation in a few); without a bound (K
+ * infinite) all in one batch. */
+static int grid_samples(const gr_field *d, int bx, int by, const double *x, const double *y, const double *z,
+                        double K, double clamp, double reach, double *v, gr_err *e) {
+  size_t nb = (size_t)bx * by;
+  if (!isfinite(K)) return gr_field_eval(d, nb, x, y, z, v, e) ? e->code : GR_OK;
+  for (int j = 0; j < by; j++) {
+    size_t last = SIZE_MAX;
+    for (int i = 0; i < bx; i++) {
+      size_t k = i + (size_t)bx * j;
+      double a = last == SIZE_MAX ? 0 : fmin(fabs(v[last]), clamp) - K * hypot(x[k] - x[last], y[k] - y[last]);
+      if (a > reach) { v[k] = v[last] < 0 ? -a : a; continue; }
+      if (gr_field_eval(d, 1, x + k, y + k, z + k, v + k, e)) return e->code;
+      last = k;
+    }
+  }
+  return GR_OK;
+}
+
 /* Evaluate d at the m nodes idx[] of the grid into dv (batches of 256). */
 static int grid_exact(const gr_field *d, const size_t *idx, size_t m, int nx, double z, double x0, double y0,
                       double hx, double hy, double *dv, gr_err *e) {
@@ -527,15 +549,16 @@ int gr_domain_grid(const gr_field *d, double skin, double z, double x0, double y
       cy[k] = y0 + (j * GRID_BLOCK + 0.5 * (GRID_BLOCK - 1)) * hy;
       cz[k] = z;
     }
-  /* a centre beyond the window (a partial block) that d refuses: every node exactly */
-  gr_err e2;
-  gr_err_clear(&e2);
-  double K = gr_field_eval(d, nb, cx, cy, cz, cv, &e2) ? INFINITY : grid_lipschitz(d, nb, cx, cy, cz, b + 4 * nb, &clamp);
+  double K = grid_lipschitz(d, nb, cx, cy, cz, b + 4 * nb, &clamp);
   /* a block's nodes lie within r of its centre; the trimmed value needs d
    * exactly where |d| <= skin + 3 K h (the skin, and the crossings of the
    * lattice part next to it) */
   double r = 0.5 * (GRID_BLOCK - 1) * sqrt(hx * hx + hy * hy), h = fmax(hx, hy);
   double near = skin + 3 * fmax(K, 1) * h;
+  /* a centre beyond the window (a partial block) that d refuses: every node exactly */
+  gr_err e2;
+  gr_err_clear(&e2);
+  if (grid_samples(d, bx, by, cx, cy, cz, K, clamp, near + K * r, cv, &e2)) K = INFINITY;
   size_t m = 0;
   for (int j = 0; j < by; j++)
     for (int i = 0; i < bx; i++) {

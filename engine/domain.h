@@ -58,7 +58,8 @@ void gr_domain_trim_apply(size_t n, double *v, const double *dv, double skin, un
 
 /* The domain d at the nodes (x0 + i hx, y0 + j hy, z), i < nx, j < ny, into
  * dv[i + nx j] (mm), evaluated only near its boundary: one sample at the
- * centre of each block of 4 x 4 nodes and d's Lipschitz bound K (known: 1
+ * centre of each block of 4 x 4 nodes (not evaluated either where the last
+ * one evaluated in its row bounds it) and d's Lipschitz bound K (known: 1
  * for an STL solid; 1 for gr_domain_distance's wrapper, whose values hold to
  * its band, when it has its zero-set mesh (without: every node evaluated);
  * else the largest gradient at the samples x 1.5, as the classification
