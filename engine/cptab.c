@@ -160,14 +160,16 @@ static int cut_fn(void *ud_, size_t n, const double *x, const double *y, double 
     /* the lattice where it may decide */
     k = 0;
     for (size_t i = 0; i < m; i++)
-      if (st[i] == 1 || !(u->skin > 0 && dv[i] >= -0.5 * u->skin)) st[i] |= 4, id[k] = i, px[k] = x[s + i], py[k] = y[s + i], k++;
+      if (st[i] == 1 || !(u->skin > 0 && dv[i] >= -0.5 * u->skin))
+        st[i] |= 4, id[k] = i, px[k] = x[s + i], py[k] = y[s + i], k++;
     int rc = k ? near_eval(&u->n, k, px, py, g, NULL, NULL, e) : GR_OK;
     if (rc) return rc;
     for (size_t q = 0; q < k; q++) out[s + id[q]] = g[q];
     /* deep inside with g beyond [-A, A - skin]: d after all */
     k = 0;
     for (size_t i = 0; i < m; i++)
-      if (st[i] == 5 && !(out[s + i] >= -A && out[s + i] <= A - u->skin)) st[i] |= 2, id[k] = i, px[k] = x[s + i], py[k] = y[s + i], k++;
+      if (st[i] == 5 && !(out[s + i] >= -A && out[s + i] <= A - u->skin))
+        st[i] |= 2, id[k] = i, px[k] = x[s + i], py[k] = y[s + i], k++;
     if (k && gr_field_eval(u->d, k, px, py, zb, g, e)) return e->code;
     for (size_t q = 0; q < k; q++) dv[id[q]] = g[q];
     for (size_t i = 0; i < m; i++) {
@@ -216,7 +218,8 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
     if (!rc) gr_domain_trim_apply(nn, v, dv, skin, NULL);
   }
   cut_ud u = {{f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q}, d, skin, hy, dv, far};
-  if (!rc) rc = cut ? gr_slice_grid(v, so, cut_fn, NULL, &u, out, e) : gr_slice_grid(v, so, near_fn, near_eval, &u.n, out, e);
+  if (!rc)
+    rc = cut ? gr_slice_grid(v, so, cut_fn, NULL, &u, out, e) : gr_slice_grid(v, so, near_fn, near_eval, &u.n, out, e);
   free(far);
   free(Q);
   return rc;
