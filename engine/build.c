@@ -219,11 +219,13 @@ static int store_item(void *arg_, int item, gr_err *e) {
   return GR_OK;
 }
 
-/* Group key of a class for shared closest points ("" = not shareable). */
+/* Group key of a class for shared closest points ("" = not shareable).
+ * Trimmed classes join too: their section cuts the table's values by the
+ * domain (gr_cptab_slice). */
 static void share_key(const gr_job *j, int c, char *key, size_t n) {
   const gr_vclass *cl = &j->cls[c];
   key[0] = 0;
-  if (!cl->need || cl->trimmed || !j->o.exact || !j->o.share || !gr_cptab_periodic(j->o.cell, j->o.slice_cell)) return;
+  if (!cl->need || !j->o.exact || !j->o.share || !gr_cptab_periodic(j->o.cell, j->o.slice_cell)) return;
   const gr_spec *sp = &j->specs[j->vspec[cl->rep]];
   int i, jj, k;
   gr_grid_ijk(&j->grid, cl->rep, &i, &jj, &k);

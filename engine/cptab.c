@@ -3,6 +3,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include "distance.h"
+#include "domain.h"
 
 void gr_cptab_free(gr_cptab *t) {
   if (!t) return;
@@ -115,15 +116,84 @@ static int near_fn(void *ud, size_t n, const double *x, const double *y, double 
   return near_eval(ud, n, x, y, out, NULL, NULL, e);
 }
 
-/* Section of class c's layer at z (template layer q) through the table. */
+/* A trimmed member (domain.h): the lattice part through the table, cut by
+ * the domain d with its skin. No gradient: crossings and chords are
+ * refined by bracketing, as they were when trimmed fields were sliced on
+ * their own (with Newton steps the contours moved by up to 12 um where the
+ * skin meets the lattice). */
+typedef struct cut_ud {
+  near_ud n;
+  const gr_field *d;
+  double skin, hy;
+  const double *dv;        /* the domain at the grid nodes (gr_domain_grid) */
+  const unsigned char *far; /* nodes farther than skin + 3h from its boundary */
+} cut_ud;
+
+/* Whether p lies in a grid cell with four far corners, wholly inside: d <=
+ * -A there, A = skin + 1.5h (domain.h). */
+static int far_inside(const cut_ud *u, double x, double y) {
+  double fx = (x - u->n.lo[0]) / u->n.h, fy = (y - u->n.lo[1]) / u->hy;
+  if (!(fx >= 0 && fy >= 0 && fx < u->n.nx - 1 && fy < u->n.ny - 1)) return 0;
+  size_t k = (size_t)fx + (size_t)u->n.nx * (size_t)fy, nx = (size_t)u->n.nx;
+  return u->far[k] && u->far[k + 1] && u->far[k + nx] && u->far[k + nx + 1] && u->dv[k] < 0;
+}
+
+/* The trimmed value at refined points, d evaluated only where it may
+ * decide: with a skin, wherever d >= -skin/2 the value is d whatever the
+ * lattice (min(g, -d - skin) <= d there), so g is not needed; deep inside
+ * (d <= -A) it is g wherever -A <= g <= A - skin, so d is not needed. */
+static int cut_fn(void *ud_, size_t n, const double *x, const double *y, double *out, gr_err *e) {
+  cut_ud *u = ud_;
+  enum { B = 256 };
+  double zb[B], dv[B], px[B], py[B], g[B], A = u->skin + 1.5 * fmax(u->n.h, u->hy);
+  size_t id[B];
+  unsigned char st[B]; /* 1: deep inside, 2: d known, 4: g known */
+  for (size_t s = 0; s < n; s += B) {
+    size_t m = n - s < B ? n - s : B, k = 0;
+    for (size_t i = 0; i < m; i++) zb[i] = u->n.z;
+    for (size_t i = 0; i < m; i++) {
+      st[i] = far_inside(u, x[s + i], y[s + i]) ? 1 : 2;
+      if (st[i] == 2) id[k] = i, px[k] = x[s + i], py[k] = y[s + i], k++;
+    }
+    if (k && gr_field_eval(u->d, k, px, py, zb, g, e)) return e->code;
+    for (size_t q = 0; q < k; q++) dv[id[q]] = g[q];
+    /* the lattice where it may decide */
+    k = 0;
+    for (size_t i = 0; i < m; i++)
+      if (st[i] == 1 || !(u->skin > 0 && dv[i] >= -0.5 * u->skin))
+        st[i] |= 4, id[k] = i, px[k] = x[s + i], py[k] = y[s + i], k++;
+    int rc = k ? near_eval(&u->n, k, px, py, g, NULL, NULL, e) : GR_OK;
+    if (rc) return rc;
+    for (size_t q = 0; q < k; q++) out[s + id[q]] = g[q];
+    /* deep inside with g beyond [-A, A - skin]: d after all */
+    k = 0;
+    for (size_t i = 0; i < m; i++)
+      if (st[i] == 5 && !(out[s + i] >= -A && out[s + i] <= A - u->skin))
+        st[i] |= 2, id[k] = i, px[k] = x[s + i], py[k] = y[s + i], k++;
+    if (k && gr_field_eval(u->d, k, px, py, zb, g, e)) return e->code;
+    for (size_t q = 0; q < k; q++) dv[id[q]] = g[q];
+    for (size_t i = 0; i < m; i++) {
+      if (!(st[i] & 2)) continue; /* deep inside: the value is g */
+      if (!(st[i] & 4)) out[s + i] = dv[i];
+      gr_domain_trim_apply(1, out + s + i, dv + i, u->skin, NULL);
+    }
+  }
+  return GR_OK;
+}
+
+/* Section of class c's layer at z (template layer q) through the table; a
+ * trimmed field's lattice part through the table, then cut by its domain,
+ * evaluated near the domain's boundary only (gr_domain_grid). */
 int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int q,
                    double z, const gr_slice_opts *so, gr_rings *out, gr_err *e) {
   int nx, ny;
-  double hx, hy;
+  double hx, hy, skin = 0;
   const int *P = t->P;
+  const gr_field *d = NULL;
+  int cut = gr_domain_trim_parts(f, &f, &d, &skin);
   gr_slice_grid_size(so, &nx, &ny, &hx, &hy);
   size_t nn = (size_t)nx * ny, np = (size_t)P[0] * P[1];
-  double *Q = malloc(8 * nn * sizeof *Q);
+  double *Q = malloc((cut ? 9 : 8) * nn * sizeof *Q);
   if (!Q) return gr_fail(e, GR_EMEM, "out of memory");
   double *sd = Q + 3 * nn, *v = Q + 4 * nn, *pts = Q + 5 * nn;
   double sh[3] = {o[0] - t->oref[0], o[1] - t->oref[1], o[2] - t->oref[2]};
@@ -140,8 +210,17 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
       pts[3 * n + 2] = z;
     }
   int rc = gr_offset_values(f, nn, pts, Q, sd, v, e);
-  near_ud u = {f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q};
-  if (!rc) rc = gr_slice_grid(v, so, near_fn, near_eval, &u, out, e);
+  double *dv = Q + 8 * nn;
+  unsigned char *far = cut ? malloc(nn) : NULL;
+  if (!rc && cut && !far) rc = gr_fail(e, GR_EMEM, "out of memory");
+  if (!rc && cut) {
+    rc = gr_domain_grid(d, skin, z, so->lo[0], so->lo[1], hx, hy, nx, ny, dv, far, e);
+    if (!rc) gr_domain_trim_apply(nn, v, dv, skin, NULL);
+  }
+  cut_ud u = {{f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q}, d, skin, hy, dv, far};
+  if (!rc)
+    rc = cut ? gr_slice_grid(v, so, cut_fn, NULL, &u, out, e) : gr_slice_grid(v, so, near_fn, near_eval, &u.n, out, e);
+  free(far);
   free(Q);
   return rc;
 }

@@ -40,7 +40,11 @@ gr_cptab *gr_cptab_new(const double cell[3], double h, double margin, const gr_f
 void gr_cptab_free(gr_cptab *t);
 /* Closest points of table layer q (thread-safe for distinct q). */
 int gr_cptab_layer(gr_cptab *t, int q, gr_err *e);
-/* Section of a member class (field f, voxel corner o) at height z (table layer q). */
+/* Section of a member class (field f, voxel corner o) at height z (table layer q).
+ * f may be a trimmed field (gr_domain_trim of a member's field, domain.h):
+ * the member's values from the table are then cut by the domain, which is
+ * evaluated near its boundary only (gr_domain_grid) and at refined points
+ * only where it may decide. */
 int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int q,
                    double z, const gr_slice_opts *so, gr_rings *out, gr_err *e);
 

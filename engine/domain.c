@@ -393,15 +393,19 @@ typedef struct trim {
 
 /* max(d, min(g, -d - skin)) (skin > 0) or max(g, d), from one evaluation of
  * each; sel (may be NULL) gets 1 where d decides, 2 where -d - skin does. */
+void gr_domain_trim_apply(size_t n, double *v, const double *dv, double skin, unsigned char *sel) {
+  for (size_t i = 0; i < n; i++) {
+    int s = 0;
+    if (skin > 0 && -dv[i] - skin < v[i]) v[i] = -dv[i] - skin, s = 2;
+    if (dv[i] > v[i]) v[i] = dv[i], s = 1;
+    if (sel) sel[i] = (unsigned char)s;
+  }
+}
+
 static int trim_values(const trim *t, size_t n, const double *x, const double *y, const double *z, double *out,
                        double *dv, unsigned char *sel, gr_err *e) {
   if (gr_field_eval(t->g, n, x, y, z, out, e) || gr_field_eval(t->d, n, x, y, z, dv, e)) return e->code;
-  for (size_t i = 0; i < n; i++) {
-    int s = 0;
-    if (t->skin > 0 && -dv[i] - t->skin < out[i]) out[i] = -dv[i] - t->skin, s = 2;
-    if (dv[i] > out[i]) out[i] = dv[i], s = 1;
-    if (sel) sel[i] = (unsigned char)s;
-  }
+  gr_domain_trim_apply(n, out, dv, t->skin, sel);
   return GR_OK;
 }
 
@@ -455,4 +459,121 @@ gr_field *gr_domain_trim(gr_field *g, gr_field *d, double skin, gr_err *e) {
     return gr_fail(e, GR_EMEM, "out of memory"), NULL;
   }
   return f;
+}
+
+int gr_domain_trim_parts(const gr_field *f, const gr_field **g, const gr_field **d, double *skin) {
+  const trim *t = gr_field_callback_data(f, trim_eval);
+  if (!t) return 0;
+  *g = t->g, *d = t->d, *skin = t->skin;
+  return 1;
+}
+
+/* ---- the domain on a plane grid, exact only near its boundary ---- */
+
+#define GRID_BLOCK 4      /* nodes per block side: one sample decides a block */
+#define GRID_LIP_SAFETY 1.5 /* on a bound estimated from gradients (as classify.c does) */
+
+/* d's Lipschitz bound over the samples (x, y, z): known, 1 for the distance
+ * wrapper (whose values beyond its band are only clamped to it: *clamp),
+ * else the largest gradient there times a safety factor (INFINITY if none
+ * can be had: every node is then evaluated). */
+static double grid_lipschitz(const gr_field *d, size_t n, const double *x, const double *y, const double *z,
+                             double *s, double *clamp) {
+  const dom *w = gr_field_callback_data(d, dom_eval);
+  *clamp = INFINITY;
+  if (w) {
+    *clamp = w->zb ? w->band : 0; /* without the zero-set mesh the far values bound nothing */
+    return 1;
+  }
+  double K = gr_field_lipschitz(d), g = 0;
+  if (isfinite(K)) return K;
+  gr_err e2;
+  gr_err_clear(&e2);
+  if (gr_field_grad(d, n, x, y, z, s, s + n, s + 2 * n, &e2)) return INFINITY;
+  for (size_t i = 0; i < n; i++) g = fmax(g, sqrt(s[i] * s[i] + s[n + i] * s[n + i] + s[2 * n + i] * s[2 * n + i]));
+  return isfinite(g) && g > 0 ? GRID_LIP_SAFETY * g : INFINITY;
+}
+
+/* d at the bx x by block centres (x, y, z) into v, row by row: a centre
+ * whose distance is bounded from the last one evaluated in its row (|v| -
+ * K x their distance, beyond `reach`) gets that bound with its sign instead
+ * (a far region costs one evaluation in a few); without a bound (K
+ * infinite) all in one batch. */
+static int grid_samples(const gr_field *d, int bx, int by, const double *x, const double *y, const double *z,
+                        double K, double clamp, double reach, double *v, gr_err *e) {
+  size_t nb = (size_t)bx * by;
+  if (!isfinite(K)) return gr_field_eval(d, nb, x, y, z, v, e) ? e->code : GR_OK;
+  for (int j = 0; j < by; j++) {
+    size_t last = SIZE_MAX;
+    for (int i = 0; i < bx; i++) {
+      size_t k = i + (size_t)bx * j;
+      double a = last == SIZE_MAX ? 0 : fmin(fabs(v[last]), clamp) - K * hypot(x[k] - x[last], y[k] - y[last]);
+      if (a > reach) { v[k] = v[last] < 0 ? -a : a; continue; }
+      if (gr_field_eval(d, 1, x + k, y + k, z + k, v + k, e)) return e->code;
+      last = k;
+    }
+  }
+  return GR_OK;
+}
+
+/* Evaluate d at the m nodes idx[] of the grid into dv (batches of 256). */
+static int grid_exact(const gr_field *d, const size_t *idx, size_t m, int nx, double z, double x0, double y0,
+                      double hx, double hy, double *dv, gr_err *e) {
+  enum { B = 256 };
+  double x[B], y[B], zb[B], v[B];
+  for (size_t s = 0; s < m; s += B) {
+    size_t k = m - s < B ? m - s : B;
+    for (size_t i = 0; i < k; i++) {
+      size_t n = idx[s + i];
+      x[i] = x0 + (double)(n % (size_t)nx) * hx, y[i] = y0 + (double)(n / (size_t)nx) * hy, zb[i] = z;
+    }
+    if (gr_field_eval(d, k, x, y, zb, v, e)) return e->code;
+    for (size_t i = 0; i < k; i++) dv[idx[s + i]] = v[i];
+  }
+  return GR_OK;
+}
+
+int gr_domain_grid(const gr_field *d, double skin, double z, double x0, double y0, double hx, double hy, int nx,
+                   int ny, double *dv, unsigned char *far_out, gr_err *e) {
+  int bx = (nx + GRID_BLOCK - 1) / GRID_BLOCK, by = (ny + GRID_BLOCK - 1) / GRID_BLOCK;
+  size_t nb = (size_t)bx * by, nn = (size_t)nx * ny;
+  double *b = malloc(7 * nb * sizeof *b);
+  size_t *idx = malloc(nn * sizeof *idx);
+  if (!b || !idx) { free(b); free(idx); return gr_fail(e, GR_EMEM, "out of memory"); }
+  double *cx = b, *cy = b + nb, *cz = b + 2 * nb, *cv = b + 3 * nb, clamp = INFINITY;
+  /* one sample at the centre of each block of GRID_BLOCK^2 nodes */
+  for (int j = 0; j < by; j++)
+    for (int i = 0; i < bx; i++) {
+      size_t k = i + (size_t)bx * j;
+      cx[k] = x0 + (i * GRID_BLOCK + 0.5 * (GRID_BLOCK - 1)) * hx;
+      cy[k] = y0 + (j * GRID_BLOCK + 0.5 * (GRID_BLOCK - 1)) * hy;
+      cz[k] = z;
+    }
+  double K = grid_lipschitz(d, nb, cx, cy, cz, b + 4 * nb, &clamp);
+  /* a block's nodes lie within r of its centre; the trimmed value needs d
+   * exactly where |d| <= skin + 3 K h (the skin, and the crossings of the
+   * lattice part next to it) */
+  double r = 0.5 * (GRID_BLOCK - 1) * sqrt(hx * hx + hy * hy), h = fmax(hx, hy);
+  double near = skin + 3 * fmax(K, 1) * h;
+  /* a centre beyond the window (a partial block) that d refuses: every node exactly */
+  gr_err e2;
+  gr_err_clear(&e2);
+  if (grid_samples(d, bx, by, cx, cy, cz, K, clamp, near + K * r, cv, &e2)) K = INFINITY;
+  size_t m = 0;
+  for (int j = 0; j < by; j++)
+    for (int i = 0; i < bx; i++) {
+      double c = cv[i + (size_t)bx * j], a = isfinite(K) ? fmin(fabs(c), clamp) - K * r : 0;
+      int far = a > near;
+      for (int q = j * GRID_BLOCK; q < ny && q < (j + 1) * GRID_BLOCK; q++)
+        for (int p = i * GRID_BLOCK; p < nx && p < (i + 1) * GRID_BLOCK; p++) {
+          size_t n = p + (size_t)nx * q;
+          if (far) dv[n] = c < 0 ? -a : a; /* d's sign, nearer the boundary than d */
+          else idx[m++] = n;
+          if (far_out) far_out[n] = (unsigned char)far;
+        }
+    }
+  int rc = grid_exact(d, idx, m, nx, z, x0, y0, hx, hy, dv, e);
+  free(b);
+  free(idx);
+  return rc;
 }

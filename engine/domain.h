@@ -47,4 +47,32 @@ gr_field *gr_domain_trim(gr_field *g, gr_field *d, double skin, gr_err *e);
 /* 1 if d is such a true-distance wrapper. */
 int gr_domain_is_distance(const gr_field *d);
 
+/* 1 and g, d and skin (borrowed) if f was made by gr_domain_trim, else 0. */
+int gr_domain_trim_parts(const gr_field *f, const gr_field **g, const gr_field **d, double *skin);
+
+/* Trim n values of the lattice field in place, given the domain's values dv:
+ * v <- max(d, min(v, -d - skin)) (skin > 0) or max(v, d), as gr_domain_trim
+ * does; sel (may be NULL) gets 0 where v decides, 1 where d does, 2 where
+ * -d - skin does. */
+void gr_domain_trim_apply(size_t n, double *v, const double *dv, double skin, unsigned char *sel);
+
+/* The domain d at the nodes (x0 + i hx, y0 + j hy, z), i < nx, j < ny, into
+ * dv[i + nx j] (mm), evaluated only near its boundary: one sample at the
+ * centre of each block of 4 x 4 nodes (not evaluated either where the last
+ * one evaluated in its row bounds it) and d's Lipschitz bound K (known: 1
+ * for an STL solid; 1 for gr_domain_distance's wrapper, whose values hold to
+ * its band, when it has its zero-set mesh (without: every node evaluated);
+ * else the largest gradient at the samples x 1.5, as the classification
+ * takes it; a sample d refuses: every node evaluated, the error then
+ * coming from a node, if any) prove which blocks lie wholly farther than
+ * skin + 3 K max(hx, hy) from the boundary; their nodes get d's sign and a
+ * magnitude below |d| but beyond that distance (trimming with it keeps the
+ * trimmed value's sign everywhere, its value wherever it is within 3 K h of
+ * zero). The other blocks' nodes are evaluated exactly. far (nx ny, or
+ * NULL) gets 1 at the nodes not evaluated: at any point of a grid cell whose
+ * four corners are such, |d| > skin + 1.5 max(hx, hy), with the corners'
+ * sign. Errors of d as gr_field_eval gives them; GR_EMEM. */
+int gr_domain_grid(const gr_field *d, double skin, double z, double x0, double y0, double hx, double hy, int nx,
+                   int ny, double *dv, unsigned char *far, gr_err *e);
+
 #endif

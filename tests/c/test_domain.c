@@ -1,7 +1,9 @@
 /* test_domain.c: a domain field made a signed distance (domain.h), against
  * the analytic distance to a cylinder written squared, batched over many
  * points (inside and outside the band), a field that is a distance already
- * kept as it is, and NaN from the domain reported as the domain's. */
+ * kept as it is, and NaN from the domain reported as the domain's; the
+ * domain on a plane grid near its boundary only (gr_domain_grid) against
+ * the domain evaluated at every node. */
 #include <math.h>
 #include <string.h>
 #include "domain.h"
@@ -85,9 +87,81 @@ TEST(distance_probed_over_box) {
   gr_field_free(f);
 }
 
+
+/* gr_domain_grid against d at every node: the same sign everywhere, the
+ * exact value at the nodes not marked far and within skin + 3h of the
+ * boundary, elsewhere a magnitude between skin + 3h and |d|; at a point of
+ * each cell with four far corners, |d| > skin + 1.5h with their sign.
+ * Returns the share of nodes not evaluated (far). */
+static double grid_check(const gr_field *d, double skin, int NX, int NY, const char *what) {
+  gr_err e;
+  gr_err_clear(&e);
+  enum { N = 202 * 198 };
+  double x0 = 0.013, y0 = -0.021, hx = 0.05, hy = 0.0501, z = 0.3, near = skin + 3 * 0.0501;
+  static double dv[N], full[N], x[N], y[N], zz[N], cx[N], cy[N], cv[N];
+  static unsigned char far[N];
+  static int cn[N];
+  if (NX * NY > N) return 0;
+  for (int j = 0; j < NY; j++)
+    for (int i = 0; i < NX; i++) x[i + NX * j] = x0 + i * hx, y[i + NX * j] = y0 + j * hy, zz[i + NX * j] = z;
+  CHECK(gr_domain_grid(d, skin, z, x0, y0, hx, hy, NX, NY, dv, far, &e) == GR_OK, "%s: %s", what, e.msg);
+  CHECK(gr_field_eval(d, NX * NY, x, y, zz, full, &e) == GR_OK, "%s: %s", what, e.msg);
+  int bad_sign = 0, bad_near = 0, bad_far = 0, skipped = 0, nc = 0, bad_cell = 0;
+  for (int n = 0; n < NX * NY; n++) {
+    bad_sign += (dv[n] < 0) != (full[n] < 0);
+    if (!far[n] || fabs(full[n]) <= near) bad_near += dv[n] != full[n];
+    else bad_far += !(fabs(dv[n]) <= fabs(full[n]) + 1e-12 && fabs(dv[n]) > near);
+    skipped += far[n];
+  }
+  /* a point of every cell with four far corners (at 0.3, 0.8 of the cell) */
+  for (int j = 0; j + 1 < NY; j++)
+    for (int i = 0; i + 1 < NX; i++) {
+      int n = i + NX * j;
+      if (far[n] && far[n + 1] && far[n + NX] && far[n + NX + 1])
+        cx[nc] = x[n] + 0.3 * hx, cy[nc] = y[n] + 0.8 * hy, cn[nc++] = n;
+    }
+  CHECK(gr_field_eval(d, nc, cx, cy, zz, cv, &e) == GR_OK, "%s: %s", what, e.msg);
+  for (int k = 0; k < nc; k++) bad_cell += !(fabs(cv[k]) > skin + 1.5 * hy && (cv[k] < 0) == (dv[cn[k]] < 0));
+  CHECK(bad_sign == 0, "%s: %d nodes with the wrong sign", what, bad_sign);
+  CHECK(bad_near == 0, "%s: %d nodes evaluated or within %g mm of the boundary not exact", what, bad_near, near);
+  CHECK(bad_far == 0, "%s: %d far nodes outside (%g mm, |d|]", what, bad_far, near);
+  CHECK(bad_cell == 0, "%s: %d of %d points in far cells within skin + 1.5h or of another sign", what, bad_cell, nc);
+  printf("    %s: %.0f %% of the nodes not evaluated\n", what, 100.0 * skipped / (NX * NY));
+  return (double)skipped / (NX * NY);
+}
+
+TEST(grid_near_boundary_only) {
+  gr_err e;
+  gr_err_clear(&e);
+  /* an expression that is a distance (bound from its gradients) */
+  gr_field *f = gr_field_expr("sqrt((x-5)^2+(y-5)^2)-4", &e);
+  double s = grid_check(f, 0.3, 202, 198, "cylinder expression");
+  CHECK(s > 0.6, "cylinder expression: %.0f %% of the nodes not evaluated", 100 * s);
+  /* the same with a known bound 1, no skin */
+  gr_field_set_lipschitz(f, 1);
+  s = grid_check(f, 0, 202, 198, "cylinder, bound 1");
+  CHECK(s > 0.8, "cylinder, bound 1: %.0f %% not evaluated", 100 * s);
+  gr_field_free(f);
+  /* the distance wrapper of a squared form (its zero set meshed over a box) */
+  f = gr_field_expr("(x-2.5)^2+(y-2.5)^2-2.25", &e);
+  const double box[6] = {0, 0, 0, 5, 5, 0.6};
+  gr_field *d = gr_domain_distance(f, 0.8, 2, box, &e);
+  CHECK(d && gr_domain_is_distance(d), "wrapped: %s", e.msg);
+  s = d ? grid_check(d, 0.1, 101, 99, "distance wrapper") : 0;
+  CHECK(s > 0.4, "distance wrapper: %.0f %% not evaluated", 100 * s);
+  gr_field_free(d);
+  gr_field_free(f);
+  /* NaN at block centres past the window's last nodes: every node evaluated */
+  f = gr_field_expr("sqrt(10.07-x)-2", &e);
+  s = grid_check(f, 0.3, 202, 198, "NaN past the window");
+  CHECK(s == 0, "NaN past the window: %.0f %% not evaluated", 100 * s);
+  gr_field_free(f);
+}
+
 int main(void) {
   RUN(cylinder_squared);
   RUN(distance_probed_over_box);
   RUN(distance_kept_nan_named);
+  RUN(grid_near_boundary_only);
   DONE();
 }
