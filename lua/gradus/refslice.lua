@@ -168,7 +168,7 @@ end
 -- midpoints of the segments moved onto the level set along their normals;
 -- returns the refined segments (appended to E)
 local function chords(field, z, segs, tol, E, stats)
-  local pending = segs
+  local pending, budget = segs, #segs + 20000
   for _ = 1, 64 do
     if #pending == 0 then break end
     local xs, ys = {}, {}
@@ -176,7 +176,18 @@ local function chords(field, z, segs, tol, E, stats)
     local fm = eval(field, z, xs, ys)
     local todo = {}
     for i, s in ipairs(pending) do
-      if math.abs(fm[i]) <= 0.5 * tol then E[#E + 1] = s else todo[#todo + 1] = i end
+      if math.abs(fm[i]) <= 0.5 * tol then
+        E[#E + 1] = s
+      elseif (s[3] - s[1]) ^ 2 + (s[4] - s[2]) ^ 2 <= (2 * tol) ^ 2 or budget <= 0 then
+        -- a chord of 2 tol is within tol of any curve through its ends;
+        -- where the field is noisy at that scale (a closest point switching
+        -- patches back and forth, so that the chords never settle) the
+        -- budget of new chords runs out: stop, and count
+        E[#E + 1] = s
+        stats.short = stats.short + 1
+      else
+        todo[#todo + 1] = i
+      end
     end
     -- brackets along the normal, from a quarter to four chord lengths (the
     -- nearest sign change: a chord across a corner sharper than the grid)
@@ -212,6 +223,7 @@ local function chords(field, z, segs, tol, E, stats)
       else
         nxt[#nxt + 1] = { s[1], s[2], mx, my }
         nxt[#nxt + 1] = { mx, my, s[3], s[4] }
+        budget = budget - 1
       end
     end
     for _, i in ipairs(todo) do
@@ -234,18 +246,23 @@ function M.boundary(field, z, lo, hi, opts)
   local ny = math.max(1, math.ceil((hi[2] - lo[2]) / cell - 1e-9))
   local hx, hy = (hi[1] - lo[1]) / nx, (hi[2] - lo[2]) / ny
   local g = field:sample2 { z = z, lo = lo, hi = hi, n = { nx + 1, ny + 1 } }
-  local stats = { cells = nx * ny, leaves = 0, split = 0, unresolved = 0,
+  local stats = { cells = nx * ny, leaves = 0, split = 0, unresolved = 0, short = 0,
     grid = { nx = nx, ny = ny, hx = hx, hy = hy, v = g } }
   local leaves, todo = {}, {}
   local h = math.max(hx, hy)
+  local far = K_GUARD * h * math.sqrt(2) -- one sign, all corners farther: nothing here
   for j = 0, ny - 1 do
     for i = 0, nx - 1 do
       local b0 = 1 + i + (nx + 1) * j
-      local v = { g[b0], g[b0 + 1], g[b0 + nx + 2], g[b0 + nx + 1] }
-      local k = classify(v, h, false, depth > 0)
-      if k then
-        local c = { lo[1] + i * hx, lo[2] + j * hy, hx, v, hy }
-        if k == "leaf" then leaves[#leaves + 1] = c else todo[#todo + 1] = c end
+      local a, b, c, d = g[b0], g[b0 + 1], g[b0 + nx + 2], g[b0 + nx + 1]
+      local same = (a < 0) == (b < 0) and (a < 0) == (c < 0) and (a < 0) == (d < 0)
+      if not (same and math.abs(a) > far and math.abs(b) > far and math.abs(c) > far and math.abs(d) > far) then
+        local v = { a, b, c, d }
+        local k = classify(v, h, false, depth > 0)
+        if k then
+          local cell_ = { lo[1] + i * hx, lo[2] + j * hy, hx, v, hy }
+          if k == "leaf" then leaves[#leaves + 1] = cell_ else todo[#todo + 1] = cell_ end
+        end
       end
     end
   end

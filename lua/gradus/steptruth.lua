@@ -49,7 +49,7 @@ function M.edges(voxels, z, window, cell, opts)
   opts = opts or {}
   local o = { cell = cell, depth = opts.depth, tol = opts.tol }
   local E, face = {}, {} -- face["1:2"] = {ax, c, lo = {runs of the voxels below}, hi = {...}}
-  local stats = { cells = 0, split = 0, leaves = 0, unresolved = 0 }
+  local stats = { cells = 0, split = 0, leaves = 0, unresolved = 0, short = 0 }
   local function on_face(ax, c, side, runs)
     local key = ("%d:%.17g"):format(ax, c)
     face[key] = face[key] or { ax = ax, c = c, lo = {}, hi = {} }
