@@ -120,6 +120,40 @@ static int thick(const offset *f, const gr_expr *x, size_t n, const double *cons
   return GR_OK;
 }
 
+static int exact_newton(const offset *f, const double p[3], double q[3]);
+
+/* Newton projection of x onto phi = 0 (a few steps); 0 if it fails. */
+static int project(const offset *f, double x[3]) {
+  gr_err e;
+  for (int k = 0; k < 8; k++) {
+    double v, gx, gy, gz;
+    if (gr_field_eval_grad(f->phi, 1, &x[0], &x[1], &x[2], &v, &gx, &gy, &gz, &e)) return 0;
+    double g2 = gx * gx + gy * gy + gz * gz;
+    if (!(g2 > 1e-300)) return 0;
+    if (fabs(v) < 1e-14) return 1;
+    x[0] -= v * gx / g2;
+    x[1] -= v * gy / g2;
+    x[2] -= v * gz / g2;
+  }
+  return 1;
+}
+
+/* The alternation below did not settle (p near a centre of curvature, or
+ * on a mirror plane between two feet: it can stop off the surface, which
+ * made d too short by micrometres on thick iwp sheets). End on the surface,
+ * and take the constrained Newton answer from the mesh point q0 instead when
+ * it is nearer. */
+static int settle(const offset *f, const double p[3], const double q0[3], double x[3]) {
+  if (!project(f, x)) return 0;
+  double y[3] = {q0[0], q0[1], q0[2]};
+  if (exact_newton(f, p, y) && project(f, y)) {
+    double dx = (p[0] - x[0]) * (p[0] - x[0]) + (p[1] - x[1]) * (p[1] - x[1]) + (p[2] - x[2]) * (p[2] - x[2]);
+    double dy = (p[0] - y[0]) * (p[0] - y[0]) + (p[1] - y[1]) * (p[1] - y[1]) + (p[2] - y[2]) * (p[2] - y[2]);
+    if (dy < dx) memcpy(x, y, 3 * sizeof *x);
+  }
+  return 1;
+}
+
 /* Refine q onto phi = 0 as the closest point to p: alternate a Newton
  * projection onto the surface with a move to the foot of p on the tangent
  * plane. Keeps the mesh point when it does not converge. The alternation
@@ -128,6 +162,7 @@ static int thick(const offset *f, const gr_expr *x, size_t n, const double *cons
  * after a few rounds). */
 static int exact_refine(const offset *f, const double p[3], double q[3]) {
   double x[3] = {q[0], q[1], q[2]};
+  int conv = 0;
   for (int it = 0; it < 40; it++) {
     double v, gx, gy, gz;
     gr_err e;
@@ -149,8 +184,9 @@ static int exact_refine(const offset *f, const double p[3], double q[3]) {
     double t[3] = {r[0] - rn * n[0], r[1] - rn * n[1], r[2] - rn * n[2]};
     double tl = sqrt(gr_dot3(t, t));
     for (int a = 0; a < 3; a++) x[a] += t[a];
-    if (tl < 1e-12) break;
+    if (tl < 1e-12) { conv = 1; break; }
   }
+  if (!conv && !settle(f, p, q, x)) return 0;
   double dq = sqrt((x[0] - q[0]) * (x[0] - q[0]) + (x[1] - q[1]) * (x[1] - q[1]) + (x[2] - q[2]) * (x[2] - q[2]));
   if (!(isfinite(dq) && dq < 0.25 * f->L)) return 0;
   memcpy(q, x, sizeof x);

@@ -99,7 +99,7 @@ for _, surface in ipairs(list(surfaces)) do
         local sec = gradus.slice.field(V[5].field, z, { lo = { L, L }, hi = { 2 * L, 2 * L }, cell = d / 8 })
         local r = gradus.hatch.verify(sec, layer, { track = d, pixel = d / 20, offset = b, spacing = d, contours = 1,
           clip_lo = { L, L }, clip_hi = { 2 * L, 2 * L } })
-        local E = truth.edges(V, z, { lo = { L - 0.3, L - 0.3 }, hi = { 2 * L + 0.3, 2 * L + 0.3 } }, d / 8)
+        local E = truth.edges(V, z, { lo = { L - 0.15, L - 0.15 }, hi = { 2 * L + 0.15, 2 * L + 0.15 } }, d / 8)
         local devs = truth.deviations(layer, E, b, { L, L, 2 * L, 2 * L })
         local dsum = 0
         for _, x in ipairs(devs) do dsum = dsum + x end

@@ -17,6 +17,7 @@
 -- voxels: list of {lo = {x, y}, hi = {x, y}, field = f} (squares tiling the
 -- region, fields of gradus.distance.offset or any gradus field).
 local gradus = require "gradus"
+local refslice = require "gradus.refslice"
 local M = {}
 
 function M.field(voxels)
@@ -36,40 +37,36 @@ local function inside(list, s)
   return false
 end
 
---- M.edges(voxels, z, window, cell) -> segments {{x0, y0, x1, y1}, ...}:
--- the true boundary inside window = {lo = {x, y}, hi = {x, y}} (closed along
--- the window's border), sliced at height z with grid cell `cell` (mm).
-function M.edges(voxels, z, window, cell)
-  local E, face = {}, {} -- face["x=2"] = {lo = {intervals of the voxels below}, hi = {...}}
-  local function on_face(ax, c, side, s0, s1)
+--- M.edges(voxels, z, window, cell [, opts]) -> segments {{x0, y0, x1, y1}, ...},
+-- stats: the true boundary inside window = {lo = {x, y}, hi = {x, y}}
+-- (closed along the window's border) at height z. Each voxel's own field
+-- over its own square (gradus.refslice: base grid `cell` mm, split at jumps
+-- of the field, vertices and chords on the level set within opts.tol, default
+-- 1e-5 mm; opts.depth splits, default 9), and on each face the parts where
+-- exactly one side is solid (the runs of each side's field along the face).
+-- stats: base cells, split cells, leaves, unresolved chords (summed).
+function M.edges(voxels, z, window, cell, opts)
+  opts = opts or {}
+  local o = { cell = cell, depth = opts.depth, tol = opts.tol }
+  local E, face = {}, {} -- face["1:2"] = {ax, c, lo = {runs of the voxels below}, hi = {...}}
+  local stats = { cells = 0, split = 0, leaves = 0, unresolved = 0, short = 0 }
+  local function on_face(ax, c, side, runs)
     local key = ("%d:%.17g"):format(ax, c)
     face[key] = face[key] or { ax = ax, c = c, lo = {}, hi = {} }
     local l = face[key][side]
-    l[#l + 1] = { math.min(s0, s1), math.max(s0, s1) }
+    for _, r in ipairs(runs) do l[#l + 1] = r end
   end
   for _, v in ipairs(voxels) do
     local lo = { math.max(v.lo[1], window.lo[1]), math.max(v.lo[2], window.lo[2]) }
     local hi = { math.min(v.hi[1], window.hi[1]), math.min(v.hi[2], window.hi[2]) }
     if hi[1] > lo[1] and hi[2] > lo[2] then
-      local sec = gradus.slice.field(v.field, z, { lo = lo, hi = hi, cell = cell })
-      for i = 1, sec:count() do
-        local r = sec:ring(i)
-        local n = #r // 2
-        for k = 1, n do
-          local k2 = k % n + 1
-          local e = { r[2 * k - 1], r[2 * k], r[2 * k2 - 1], r[2 * k2] }
-          local done = false
-          for ax = 1, 2 do
-            for _, c in ipairs { lo[ax], hi[ax] } do
-              local interior = c > window.lo[ax] and c < window.hi[ax]
-              if not done and interior and math.abs(e[ax] - c) < 1e-9 and math.abs(e[ax + 2] - c) < 1e-9 then
-                on_face(ax, c, c == hi[ax] and "lo" or "hi", e[3 - ax], e[5 - ax])
-                done = true
-              end
-            end
-          end
-          if not done then E[#E + 1] = e end
-        end
+      local Ev, st = refslice.boundary(v.field, z, lo, hi, o)
+      for _, e in ipairs(Ev) do E[#E + 1] = e end
+      for k in pairs(stats) do stats[k] = stats[k] + st[k] end
+      for ax = 1, 2 do
+        local s0, s1 = lo[3 - ax], hi[3 - ax]
+        on_face(ax, lo[ax], "hi", refslice.runs(v.field, z, ax, lo[ax], s0, s1, o))
+        on_face(ax, hi[ax], "lo", refslice.runs(v.field, z, ax, hi[ax], s0, s1, o))
       end
     end
   end
@@ -86,7 +83,7 @@ function M.edges(voxels, z, window, cell)
       end
     end
   end
-  return E
+  return E, stats
 end
 
 --- M.deviations(layer, E, b, box) -> sorted list of | distance - b | (mm) of
