@@ -10,6 +10,7 @@
 #include "hatch.h"
 #include "lasers.h"
 #include "regions.h"
+#include "skinring.h"
 
 typedef gr_asm_seg seg; /* stitch.h */
 
@@ -377,6 +378,9 @@ static int gather_voxels(gr_job *j, int g, gr_asm_scratch *s, gr_layer *out, gr_
       rc = gr_fail(e, GR_EMEM, "out of memory");
       break;
     }
+    gr_skinring *sr = gr_skinring_new(j, g, v, tl, e); /* more contours along the skin (NULL: none) */
+    if (!sr && e->code) { gr_fstep_free(&st); rc = e->code; break; }
+    if (sr && (rc = gr_skinring_contours(sr, q, s->cont, e))) { gr_skinring_free(sr); gr_fstep_free(&st); break; }
     for (size_t b = nb0; b < s->cont->nb; b++) {
       s->cont->b[b].laser = q; /* slot, mapped to the laser later */
       lc[q] += gr_block_length(s->cont, &s->cont->b[b]);
@@ -386,7 +390,8 @@ static int gather_voxels(gr_job *j, int g, gr_asm_scratch *s, gr_layer *out, gr_
     double av = a;
     if (j->o.pattern == GR_PATTERN_ISLAND && ((i + jj) & 1)) av = fmod(a + 90, 360);
     rc = hatch_voxel(j, s, tl, o, av, q, mask, e);
-    if (rc == GR_OK) rc = gr_regions_split(j, g, v, &s->segs, &s->nseg, &s->capseg, s->vseg0[q], e);
+    if (rc == GR_OK) rc = gr_regions_split(j, g, v, sr, &s->segs, &s->nseg, &s->capseg, s->vseg0[q], e);
+    gr_skinring_free(sr);
     gr_fstep_free(&st);
     s->vcont1[q] = s->cont->nb;
     s->vseg1[q] = s->nseg;

@@ -36,11 +36,14 @@ int gr_l_job_regions(lua_State *L) {
       o.speed[r] = v;
     } else if (hr < GR_NREGIONS) {
       o.hatch[hr] = v;
+    } else if (!strcmp(k, "skin_contours")) {
+      if (!(v >= 0 && v <= 20 && v == floor(v))) return luaL_error(L, "job:regions: 'skin_contours' must be a whole number in 0..20");
+      o.skin_contours = (int)v;
     } else if (!strcmp(k, "down") || !strcmp(k, "up")) {
       if (!(v >= 1 && v <= 64 && v == floor(v))) return luaL_error(L, "job:regions: '%s' must be a whole number of layers in 1..64", k);
       *(!strcmp(k, "down") ? &o.down : &o.up) = (int)v;
     } else {
-      return luaL_error(L, "job:regions: unknown key '%s' (skin, thin, downskin, upskin, down, up, <region>_hatch)", k);
+      return luaL_error(L, "job:regions: unknown key '%s' (skin, thin, downskin, upskin, down, up, <region>_hatch, skin_contours)", k);
     }
     lua_pop(L, 1);
   }

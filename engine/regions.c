@@ -1,6 +1,7 @@
 /* regions.c: regions with their own build styles, see regions.h. */
 #include "regions.h"
 #include "job.h"
+#include "skinring.h"
 #include <math.h>
 #include <pthread.h>
 #include <stdlib.h>
@@ -10,6 +11,7 @@
 #define MAXDIV 16 /* the line family's spacing: the job's hatch / 1 .. MAXDIV */
 #define MAXSTEP 64 /* a region's spacing: at most MAXSTEP lines of the family */
 #define HATCHED ((1 << GR_SKIN) | (1 << GR_DOWNSKIN) | (1 << GR_UPSKIN))
+#define DROP GR_NREGIONS /* a hatch piece within the skin's contour band */
 
 struct gr_regions {
   gr_regions_opts o;
@@ -65,6 +67,9 @@ int gr_job_set_regions(gr_job *j, const gr_regions_opts *o, gr_err *e) {
       return gr_fail(e, GR_EARG, "regions: the hatch spacing of region %s must be > 0 mm, got %g", gr_region_name(r),
                      o->hatch[r]);
   }
+  if (o->skin_contours != 0 && !((o->mask >> GR_SKIN & 1) && o->skin_contours >= j->o.contours && o->skin_contours <= 20))
+    return gr_fail(e, GR_EARG, "regions: the skin's contours must be the job's %d .. 20 and need the skin region, got %d",
+                   j->o.contours, o->skin_contours);
   double d0 = 0;
   int step[GR_NREGIONS];
   if (line_family(j->o.hatch, o->hatch, o->mask, &d0, step, e)) return e->code;
@@ -86,6 +91,14 @@ int gr_job_set_regions(gr_job *j, const gr_regions_opts *o, gr_err *e) {
 }
 
 int gr_regions_mask(const gr_job *j) { return j->regions ? j->regions->o.mask : 0; }
+
+int gr_regions_skin_contours(const gr_job *j) {
+  return j->regions && j->regions->o.skin_contours > 0 ? j->regions->o.skin_contours : j->o.contours;
+}
+
+pthread_mutex_t *gr_regions_mutex(gr_job *j) {
+  return j->regions && !gr_field_threadsafe(j->domain) ? &j->regions->mu : NULL;
+}
 
 double gr_regions_line(const gr_job *j) { return j->regions ? j->regions->line : j->o.hatch; }
 
@@ -236,6 +249,7 @@ typedef struct vctx {
   double z;           /* layer middle, mm (domain) */
   int skin;           /* the skin test applies */
   int mask;
+  gr_skinring *sr;    /* the skin's contour band (NULL: none) */
 } vctx;
 
 static int dom_eval(vctx *c, size_t n, const double *x, const double *y, double *f, gr_err *e) {
@@ -284,9 +298,40 @@ static int skin_cuts(vctx *c, const double p0[2], const double p1[2], cutbuf *cb
   return GR_OK;
 }
 
+/* Where the segment enters or leaves the skin's contour band (skinring.h):
+ * samples every hatch / 2, each change bisected. */
+static int drop_cuts(vctx *c, const double p0[2], const double p1[2], cutbuf *cb, gr_err *e) {
+  double len = hypot(p1[0] - p0[0], p1[1] - p0[1]);
+  int m = (int)ceil(len / (0.5 * c->j->o.hatch));
+  if (m < 1) m = 1;
+  int prev = 0;
+  for (int a = 0; a <= m; a++) {
+    double t = (double)a / m;
+    int d = gr_skinring_drop(c->sr, p0[0] + t * (p1[0] - p0[0]), p0[1] + t * (p1[1] - p0[1]), e);
+    if (d < 0) return -d;
+    if (a > 0 && d != prev) {
+      double lo = (double)(a - 1) / m, hi = t;
+      for (int it = 0; it < 40; it++) {
+        double mid = 0.5 * (lo + hi);
+        int dm = gr_skinring_drop(c->sr, p0[0] + mid * (p1[0] - p0[0]), p0[1] + mid * (p1[1] - p0[1]), e);
+        if (dm < 0) return -dm;
+        if (dm == prev) lo = mid; else hi = mid;
+      }
+      if (add_cut(cb, 0.5 * (lo + hi))) return gr_fail(e, GR_EMEM, "out of memory");
+    }
+    prev = d;
+  }
+  return GR_OK;
+}
+
 /* The region of the point at position s of line k (global (x, y)). */
 static int region_at(vctx *c, long k, double s, double x, double y, int *reg, gr_err *e) {
   long slot = k - c->f.lmin;
+  if (c->sr) { /* within the skin's contour band: not hatched */
+    int d = gr_skinring_drop(c->sr, x, y, e);
+    if (d < 0) return -d;
+    if (d) { *reg = DROP; return GR_OK; }
+  }
   int down = 0, up = 0;
   for (int i = 0; i < c->nbelow && !down; i++) down = !inside(&c->nb[i], slot, s);
   for (int i = 0; i < c->nabove && !up; i++) up = !inside(&c->nb[c->nbelow + i], slot, s);
@@ -305,6 +350,7 @@ static int region_at(vctx *c, long k, double s, double x, double y, int *reg, gr
  * unless s's line is not one of reg's (step[reg]). */
 static int put_piece(const vctx *c, const gr_hseg *s, double ta, double tb, int reg, gr_hseg **out, size_t *n,
                      size_t *cap, gr_err *e) {
+  if (reg == DROP) return GR_OK;
   long m = c->j->regions->step[reg];
   if (m > 1 && ((s->line % m) + m) % m != 0) return GR_OK;
   if (gr_grow(out, cap, *n + 1, sizeof **out)) return gr_fail(e, GR_EMEM, "out of memory");
@@ -332,6 +378,7 @@ static int split_one(vctx *c, const gr_hseg *s, cutbuf *cb, gr_hseg **out, size_
       if (add_cut(cb, (nb->s[q] - s->s0) / len)) return gr_fail(e, GR_EMEM, "out of memory");
   }
   if (c->skin && skin_cuts(c, p0, p1, cb, e)) return e->code;
+  if (c->sr && drop_cuts(c, p0, p1, cb, e)) return e->code;
   if (gr_grow(&cb->t, &cb->cap, cb->n + 2, sizeof *cb->t)) return gr_fail(e, GR_EMEM, "out of memory");
   qsort(cb->t, cb->n, sizeof *cb->t, cmp_dbl);
   memmove(cb->t + 1, cb->t, cb->n * sizeof *cb->t);
@@ -386,7 +433,8 @@ static int prepare(vctx *c, int g, int v, const gr_hseg *sg, size_t m, gr_err *e
   return GR_OK;
 }
 
-int gr_regions_split(gr_job *j, int g, int v, gr_hseg **segs, size_t *n, size_t *cap, size_t a, gr_err *e) {
+int gr_regions_split(gr_job *j, int g, int v, gr_skinring *sr, gr_hseg **segs, size_t *n, size_t *cap, size_t a,
+                     gr_err *e) {
   int mask = gr_regions_mask(j);
   if (!(mask & HATCHED) || *n <= a) return GR_OK;
   vctx c;
@@ -396,6 +444,7 @@ int gr_regions_split(gr_job *j, int g, int v, gr_hseg **segs, size_t *n, size_t 
   c.nbelow = j->regions->o.down;
   c.nabove = j->regions->o.up;
   c.skin = (mask >> GR_SKIN & 1) && j->skin > 0 && j->domain && j->cls[j->vcls[v]].trimmed;
+  c.sr = sr;
   size_t m = *n - a;
   gr_hseg *orig = malloc(m * sizeof *orig);
   int rc = orig ? prepare(&c, g, v, *segs + a, m, e) : gr_fail(e, GR_EMEM, "out of memory");

@@ -25,8 +25,10 @@
  * neighbours' sections); thin-wall lines get their own region. */
 #ifndef GR_REGIONS_H
 #define GR_REGIONS_H
+#include <pthread.h>
 #include "place.h"
 #include "stitch.h"
+struct gr_skinring;
 
 struct gr_regions;
 
@@ -36,6 +38,7 @@ typedef struct gr_regions_opts {
   double speed[GR_NREGIONS]; /* scan speed per region, mm/s (index 0 unused: the machine's) */
   double hatch[GR_NREGIONS]; /* hatch spacing of a hatched region (skin, downskin, upskin), mm;
                                 0: the job's. Index 0 (core) must be 0 or the job's. */
+  int skin_contours;         /* contours along the skin's outer surface (skinring.h); 0: the job's */
 } gr_regions_opts;
 
 /* Give job j its regions (copied). Errors (GR_EARG): an unknown region bit,
@@ -57,6 +60,10 @@ int gr_job_set_regions(gr_job *j, const gr_regions_opts *o, gr_err *e);
 double gr_regions_line(const gr_job *j);
 /* The hatch spacing of region r's lines, mm (d0 times its step). */
 double gr_regions_hatch(const gr_job *j, int r);
+/* The skin's contour count (the job's when it has none of its own). */
+int gr_regions_skin_contours(const gr_job *j);
+/* The lock around domain evaluations (NULL when the domain is thread-safe). */
+pthread_mutex_t *gr_regions_mutex(gr_job *j);
 /* The regions asked for (bit mask, 0 = none). */
 int gr_regions_mask(const gr_job *j);
 /* Layers below and above the layer range [ga, gb] that the down- and
@@ -66,8 +73,10 @@ void gr_regions_free(struct gr_regions *r);
 /* Cut the hatch segments (*segs)[a .. *n) of voxel v (row slot order kept,
  * each segment replaced by its pieces in order) in global layer g by
  * region; pieces tagged in gr_hseg.region, those off their region's lines
- * (k mod m_r != 0) dropped. No-op without regions. */
-int gr_regions_split(gr_job *j, int g, int v, gr_hseg **segs, size_t *n, size_t *cap, size_t a, gr_err *e);
+ * (k mod m_r != 0) dropped, and with sr (skinring.h, may be NULL) those
+ * within the skin's contour band dropped. No-op without regions. */
+int gr_regions_split(gr_job *j, int g, int v, struct gr_skinring *sr, gr_hseg **segs, size_t *n, size_t *cap,
+                     size_t a, gr_err *e);
 /* Layer g2's solid in the column of voxel v into *state: GR_SOLID_PLATE
  * below layer 1, GR_SOLID_NONE above the part or where the column is empty,
  * else GR_SOLID_RINGS with *r the template layer's section (section = 1) or

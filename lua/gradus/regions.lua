@@ -91,9 +91,10 @@ end
 -- contour count (p.contours), so a core hatch or contour count other than
 -- those is refused (set them with -D hatch / -D contours instead). Skin,
 -- down-skin and up-skin may have their own hatch spacing (any whole multiple
--- of the job's hatch / n, n <= 16: checked by job:regions). Contours belong
--- to the section's outline, which every region shares: a contour count on
--- another region is refused, not ignored.
+-- of the job's hatch / n, n <= 16: checked by job:regions). The skin may
+-- have more contours than the job (along the part's outer surface); a
+-- down-skin or up-skin area shares its outline with the core: a contour
+-- count there is refused, not ignored.
 function M.fit(rg, p)
   for _, name in ipairs(M.NAMES) do
     local s = rg[name]
@@ -101,11 +102,15 @@ function M.fit(rg, p)
       error(("%s: regions.core.hatch = %g mm differs from the job's hatch spacing %g mm: the core hatches at the job's spacing (set -D hatch=%g, or remove regions.core.hatch)")
         :format(s.hatch_at, s.hatch, p.hatch, s.hatch), 0)
     end
-    if s and s.contours and name ~= "core" and name ~= "contour" then
+    if s and s.contours and (name == "downskin" or name == "upskin") then
       error(("%s: regions.%s.contours: contours follow the section's outline, which the %s shares with the core; their count is the job's (-D contours, or regions.core.contours)")
         :format(s.contours_at, name, name), 0)
     end
-    if s and s.contours and s.contours ~= p.contours then
+    if s and s.contours and name == "skin" and (s.contours < p.contours or s.contours > 20) then
+      error(("%s: regions.skin.contours = %d: the skin's contours must be the job's %d .. 20 (the lattice keeps the job's)")
+        :format(s.contours_at, s.contours, p.contours), 0)
+    end
+    if s and s.contours and name ~= "skin" and s.contours ~= p.contours then
       error(("%s: regions.%s.contours = %d differs from the job's contours %d: the lattice's contour count is the job's (set -D contours=%d, or remove it)")
         :format(s.contours_at, name, s.contours, p.contours, s.contours), 0)
     end
@@ -135,6 +140,7 @@ function M.job(rg, job)
     if rg[name] then
       o[name] = rg[name].speed
       if rg[name].hatch and HATCHED[name] then o[name .. "_hatch"] = rg[name].hatch end
+      if name == "skin" and rg.skin.contours then o.skin_contours = rg.skin.contours end
     end
   end
   local ok, err = pcall(job.regions, job, o)

@@ -108,6 +108,77 @@ t.test("T: contour pieces over the overhang are down-skin, under open space up-s
   end
 end)
 
+t.test("skin contours: 3 along the T's outer surface (rectangles b, b + d, b + 2d in), hatch from the last", function()
+  local path = tmp .. "/skin3.yaml"
+  local f = io.open(path, "w")
+  f:write("regions:\n  skin: {power: 200, speed: 1250, contours: 3}\n")
+  f:close()
+  local o2 = tmp .. "/skin3.cli"
+  lattice.run(params { regions = path }, o2)
+  local cli = gradus.cli.read(o2)
+  for g, l in ipairs(cli.layers) do
+    local cl, hl = 0, 0
+    for _, b in ipairs(l:blocks()) do
+      local p = b.points
+      if b.kind == "hatch" then
+        for q = 1, #p, 4 do hl = hl + math.sqrt((p[q + 2] - p[q]) ^ 2 + (p[q + 3] - p[q + 1]) ^ 2) end
+      else
+        for q = 1, #p - 2, 2 do cl = cl + math.sqrt((p[q + 2] - p[q]) ^ 2 + (p[q + 3] - p[q + 1]) ^ 2) end
+      end
+    end
+    local w, l2 = g <= 20 and 1 or 3, 3 -- the stem's section 1 x 3, the slab's 3 x 3 (mm)
+    local want = 0
+    for i = 0, 2 do want = want + 2 * (w - 2 * (h + i * D)) + 2 * (l2 - 2 * (h + i * D)) end
+    t.near(cl, want, 1e-6, ("layer %d: three contour rectangles %.6f mm, want %.6f"):format(g, cl, want))
+    local hw = h + 2 * D -- the hatch region: inset by the last skin contour
+    t.near(hl * D, (w - 2 * hw) * (l2 - 2 * hw), 0.02, ("layer %d: hatch area %.4f mm2 inside the third contour"):format(g, hl * D))
+  end
+end)
+
+t.test("skin contours on a gyroid cut to a cylinder: extra rings along the surface only, pores' contours unchanged", function()
+  local function run(prof, path)
+    local q = lattice.params()
+    q.cells, q.surface, q.domain, q.skin, q.kb = "2,2,1", "gyroid", "sqrt((x-2)^2+(y-2)^2)-1.8", 0.3, tmp .. "/kbc"
+    q.regions, q.layers, q.layer = prof, "4:6", 0.1
+    local st = lattice.run(q, path)
+    return gradus.cli.read(path), st.effective.beam_offset, q.hatch
+  end
+  local p1, p3 = tmp .. "/s1.yaml", tmp .. "/s3.yaml"
+  local f = io.open(p1, "w") f:write("regions:\n  skin: {power: 200, speed: 1250}\n") f:close()
+  f = io.open(p3, "w") f:write("regions:\n  skin: {power: 200, speed: 1250, contours: 3}\n") f:close()
+  local c1, b, d = run(p1, tmp .. "/c1.cli")
+  local c3 = run(p3, tmp .. "/c3.cli")
+  local R = 1.8
+  for g = 1, 3 do
+    local function scan(cli)
+      local n, dev, pore, hmax = { 0, 0, 0 }, { 0, 0, 0 }, 0, 0
+      for _, bk in ipairs(cli.layers[g]:blocks()) do
+        local p = bk.points
+        for q = 1, #p, 2 do
+          local r = math.sqrt((p[q] - 2) ^ 2 + (p[q + 1] - 2) ^ 2)
+          if bk.kind == "hatch" then hmax = math.max(hmax, r)
+          else
+            local i = math.floor((R - b - r) / d + 0.5) -- 0, 1, 2: which ring
+            if i >= 0 and i <= 2 and r > R - b - 2.4 * d then
+              n[i + 1] = n[i + 1] + 1
+              dev[i + 1] = math.max(dev[i + 1], math.abs(r - (R - b - i * d)))
+            else pore = pore + 1 end
+          end
+        end
+      end
+      return n, dev, pore, hmax
+    end
+    local n1, _, pore1, h1 = scan(c1)
+    local n3, dev3, pore3, h3 = scan(c3)
+    t.ok(n1[2] == 0 and n1[3] == 0 and n3[2] > 100 and n3[3] > 100, ("layer %d: one ring along the surface without, three with (%d, %d, %d points)"):format(g, n3[1], n3[2], n3[3]))
+    t.ok(dev3[1] < 1e-3 and dev3[2] < 1e-3 and dev3[3] < 1e-3,
+      ("layer %d: rings at R - b - i d within 1 um (%.2g, %.2g, %.2g mm)"):format(g, dev3[1], dev3[2], dev3[3]))
+    t.eq(pore3, pore1, ("layer %d: the pores' contour points unchanged"):format(g))
+    t.ok(h3 <= R - b - 2 * d + 1e-6 and h1 <= R - b + 1e-6 and h1 > R - b - 1e-3,
+      ("layer %d: hatches end on the last contour (%.6f, without: %.6f)"):format(g, h3, h1))
+  end
+end)
+
 t.test("T: a layer range reads the layers around it (21:26 as in the whole job)", function()
   local o2 = tmp .. "/r.cli"
   lattice.run(params { layers = "21:26" }, o2)
@@ -341,6 +412,8 @@ t.test("bad profiles: file:line, nothing written", function()
     "bad.yaml:2:%d+: regions.downskin.contours: contours follow the section's outline", "contours on a shared outline")
   t.raises(function() lattice.run(params { regions = profile("regions:\n  thin: {power: 5, speed: 900, hatch: 0.1}\n") }, bad) end,
     "bad.yaml:2:%d+: regions.thin.hatch: the thin region has no hatches", "hatch where there is none")
+  t.raises(function() lattice.run(params { regions = profile("regions:\n  skin: {power: 5, speed: 900, contours: 0}\n"), contours = 1 }, bad) end,
+    "bad.yaml:2:%d+: regions.skin.contours = 0: the skin's contours must be the job's 1 .. 20", "fewer skin contours than the lattice's")
   t.raises(function() lattice.run(params { regions = profile("regions:\n  downskin_layers: 0\n") }, bad) end,
     "bad.yaml:2:%d+: regions.downskin_layers must be a whole number", "layer count")
   t.raises(function() lattice.run(params { kb = "off" }, bad) end, "not with kb=off", "direct mode refused")
