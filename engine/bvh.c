@@ -20,16 +20,12 @@ struct gr_bvh {
   double *box;     /* triangle boxes 6*nf: lo[3], hi[3] (while building) */
 };
 
-/* min / max of finite numbers (the vertices are checked), inlined: the
- * build visits every triangle's box once per tree level. */
-static inline double lo2(double a, double b) { return b < a ? b : a; }
-static inline double hi2(double a, double b) { return b > a ? b : a; }
 
 static void tri_box(const gr_mesh *m, uint32_t t, double *box) {
   for (int a = 0; a < 3; a++) { box[a] = INFINITY; box[3 + a] = -INFINITY; }
   for (int k = 0; k < 3; k++) {
     const double *v = m->v + 3 * m->f[3 * t + k];
-    for (int a = 0; a < 3; a++) { box[a] = lo2(box[a], v[a]); box[3 + a] = hi2(box[3 + a], v[a]); }
+    for (int a = 0; a < 3; a++) { box[a] = gr_lo(box[a], v[a]); box[3 + a] = gr_hi(box[3 + a], v[a]); }
   }
 }
 
@@ -41,11 +37,11 @@ static int build(gr_bvh *b, int first, int count) {
   for (int i = first; i < first + count; i++) {
     const double *bx = b->box + 6 * (size_t)b->tri[i];
     for (int a = 0; a < 3; a++) {
-      n->lo[a] = lo2(n->lo[a], bx[a]);
-      n->hi[a] = hi2(n->hi[a], bx[3 + a]);
+      n->lo[a] = gr_lo(n->lo[a], bx[a]);
+      n->hi[a] = gr_hi(n->hi[a], bx[3 + a]);
       double c = b->cen[3 * b->tri[i] + a];
-      clo[a] = lo2(clo[a], c);
-      chi[a] = hi2(chi[a], c);
+      clo[a] = gr_lo(clo[a], c);
+      chi[a] = gr_hi(chi[a], c);
     }
   }
   if (count <= 4) {

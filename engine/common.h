@@ -34,6 +34,10 @@ static inline void gr_err_clear(gr_err *e) { if (e) { e->code = GR_OK; e->msg[0]
 /* Length of (dx, dy): sqrt without hypot's overflow care (coordinates are
  * millimetres, far from overflow), several times faster in hot loops. */
 static inline double gr_len2d(double dx, double dy) { return sqrt(dx * dx + dy * dy); }
+/* min / max of numbers known not to be NaN, inlined (libm's fmin / fmax
+ * are calls, and show in hot loops such as a tree build). */
+static inline double gr_lo(double a, double b) { return b < a ? b : a; }
+static inline double gr_hi(double a, double b) { return b > a ? b : a; }
 
 /* Make *p hold at least `need` elements of `elsize` bytes; *cap is updated.
  * Returns GR_OK or GR_EMEM (then *p is unchanged). */

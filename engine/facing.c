@@ -8,9 +8,6 @@
 
 #define MAXL 128 /* layers looked at: at most 64 below and 64 above */
 
-/* min / max of finite numbers, inlined (libm's are calls) */
-static inline double lo2(double a, double b) { return b < a ? b : a; }
-static inline double hi2(double a, double b) { return b > a ? b : a; }
 
 /* A section's edges by horizontal strips: an edge is listed in every strip
  * its height range meets (CSR: strip k's edges e[4 start[k] .. 4 start[k+1]),
@@ -31,7 +28,7 @@ typedef struct column {
 } column;
 
 static void strip_range(const strips *s, double ya, double yb, int *k0, int *k1) {
-  double lo = (lo2(ya, yb) - s->y0) / s->h, hi = (hi2(ya, yb) - s->y0) / s->h;
+  double lo = (gr_lo(ya, yb) - s->y0) / s->h, hi = (gr_hi(ya, yb) - s->y0) / s->h;
   *k0 = lo < 0 ? 0 : lo >= s->ns ? s->ns : (int)floor(lo);
   *k1 = hi < 0 ? -1 : hi >= s->ns ? s->ns - 1 : (int)floor(hi);
 }
@@ -39,10 +36,10 @@ static void strip_range(const strips *s, double ya, double yb, int *k0, int *k1)
 /* The strips of rings r (strip height about h, mm). */
 static int strips_build(strips *s, const gr_rings *r, double h) {
   double lo = INFINITY, hi = -INFINITY;
-  for (size_t k = 0; k < r->npts; k++) { lo = lo2(lo, r->xy[2 * k + 1]); hi = hi2(hi, r->xy[2 * k + 1]); }
-  s->ns = (int)lo2(4096, hi2(1, ceil((hi - lo) / h)));
+  for (size_t k = 0; k < r->npts; k++) { lo = gr_lo(lo, r->xy[2 * k + 1]); hi = gr_hi(hi, r->xy[2 * k + 1]); }
+  s->ns = (int)gr_lo(4096, gr_hi(1, ceil((hi - lo) / h)));
   s->y0 = lo;
-  s->h = hi2(hi - lo, 1e-9) / s->ns * (1 + 1e-9);
+  s->h = gr_hi(hi - lo, 1e-9) / s->ns * (1 + 1e-9);
   s->start = calloc((size_t)s->ns + 1, sizeof *s->start);
   if (!s->start) return GR_EMEM;
   for (int pass = 0; pass < 2; pass++) {
@@ -137,7 +134,7 @@ static int add_t(fctx *c, double t) {
 /* Where segment A-B crosses the edges of the sections of column cl. */
 static int column_cuts(fctx *c, const column *cl, const double *A, const double *B) {
   double ex = B[0] - A[0], ey = B[1] - A[1];
-  double lo = lo2(A[0], B[0]) - cl->ox, hi = hi2(A[0], B[0]) - cl->ox;
+  double lo = gr_lo(A[0], B[0]) - cl->ox, hi = gr_hi(A[0], B[0]) - cl->ox;
   for (int q = 0; q < c->nb + c->na; q++) {
     if (cl->st[q] != GR_SOLID_RINGS) continue;
     const strips *s = &cl->s[q];
@@ -146,7 +143,7 @@ static int column_cuts(fctx *c, const column *cl, const double *A, const double 
     for (int k = k0; k <= k1; k++)
       for (size_t m = s->start[k]; m < s->start[k + 1]; m++) {
         const double *d = s->e + 4 * m;
-        if (hi2(d[0], d[2]) < lo || lo2(d[0], d[2]) > hi) continue;
+        if (gr_hi(d[0], d[2]) < lo || gr_lo(d[0], d[2]) > hi) continue;
         double fx = d[2] - d[0], fy = d[3] - d[1], den = ex * fy - ey * fx;
         if (den == 0) continue;
         double wx = d[0] + cl->ox - A[0], wy = d[1] + cl->oy - A[1];

@@ -255,10 +255,10 @@ typedef struct vctx {
 static int dom_eval(vctx *c, size_t n, const double *x, const double *y, double *f, gr_err *e) {
   double zz[16];
   for (size_t q = 0; q < n; q++) zz[q] = c->z;
-  int lock = !gr_field_threadsafe(c->j->domain);
-  if (lock) pthread_mutex_lock(&c->j->regions->mu);
+  pthread_mutex_t *mu = gr_regions_mutex(c->j);
+  if (mu) pthread_mutex_lock(mu);
   int rc = gr_field_eval(c->j->domain, n, x, y, zz, f, e);
-  if (lock) pthread_mutex_unlock(&c->j->regions->mu);
+  if (mu) pthread_mutex_unlock(mu);
   for (size_t q = 0; q < n; q++) f[q] += c->j->skin; /* >= 0: in the skin band */
   return rc;
 }

@@ -7,6 +7,15 @@ local t = require "gradus.testing"
 local lattice = require "gradus.lattice"
 local tmp = t.tmpdir()
 
+-- a process profile written to tmp/name (the path)
+local function write_profile(name, text)
+  local path = tmp .. "/" .. name
+  local f = io.open(path, "w")
+  f:write(text)
+  f:close()
+  return path
+end
+
 local function mx(...)
   local a = { ... }
   local e = a[1]
@@ -109,10 +118,7 @@ t.test("T: contour pieces over the overhang are down-skin, under open space up-s
 end)
 
 t.test("skin contours: 3 along the T's outer surface (rectangles b, b + d, b + 2d in), hatch from the last", function()
-  local path = tmp .. "/skin3.yaml"
-  local f = io.open(path, "w")
-  f:write("regions:\n  skin: {power: 200, speed: 1250, contours: 3}\n")
-  f:close()
+  local path = write_profile("skin3.yaml", "regions:\n  skin: {power: 200, speed: 1250, contours: 3}\n")
   local o2 = tmp .. "/skin3.cli"
   lattice.run(params { regions = path }, o2)
   local cli = gradus.cli.read(o2)
@@ -143,9 +149,8 @@ t.test("skin contours on a gyroid cut to a cylinder: extra rings along the surfa
     local st = lattice.run(q, path)
     return gradus.cli.read(path), st.effective.beam_offset, q.hatch
   end
-  local p1, p3 = tmp .. "/s1.yaml", tmp .. "/s3.yaml"
-  local f = io.open(p1, "w") f:write("regions:\n  skin: {power: 200, speed: 1250}\n") f:close()
-  f = io.open(p3, "w") f:write("regions:\n  skin: {power: 200, speed: 1250, contours: 3}\n") f:close()
+  local p1 = write_profile("s1.yaml", "regions:\n  skin: {power: 200, speed: 1250}\n")
+  local p3 = write_profile("s3.yaml", "regions:\n  skin: {power: 200, speed: 1250, contours: 3}\n")
   local c1, b, d = run(p1, tmp .. "/c1.cli")
   local c3 = run(p3, tmp .. "/c3.cli")
   local R = 1.8
@@ -256,11 +261,8 @@ local function lines(path)
 end
 
 t.test("own hatch spacings: down-skin at 0.05 mm, up-skin at 0.2 mm, skin at the job's 0.1 mm", function()
-  local path = tmp .. "/spacing.yaml"
-  local f = io.open(path, "w")
-  f:write("regions:\n  skin: {power: 200, speed: 1250}\n  downskin: {power: 100, speed: 1500, hatch: 0.05}\n" ..
-    "  upskin: {power: 150, speed: 1000, hatch: 0.2}\n")
-  f:close()
+  local path = write_profile("spacing.yaml", "regions:\n  skin: {power: 200, speed: 1250}\n" ..
+    "  downskin: {power: 100, speed: 1500, hatch: 0.05}\n  upskin: {power: 150, speed: 1000, hatch: 0.2}\n")
   local o2 = tmp .. "/spacing.cli"
   local s2 = lattice.run(params { regions = path }, o2)
   local len, off, cli = lines(o2)
@@ -388,13 +390,7 @@ t.test("OVF: down-skin and up-skin blocks carry lpbf_metadata.skin_type DOWN_SKI
   t.eq(back.upskin, n.upskin, "and UP_SKIN to up-skin")
 end)
 
-local function profile(text)
-  local path = tmp .. "/bad.yaml"
-  local f = io.open(path, "w")
-  f:write(text)
-  f:close()
-  return path
-end
+local function profile(text) return write_profile("bad.yaml", text) end
 
 t.test("bad profiles: file:line, nothing written", function()
   local bad = tmp .. "/bad.cli"
