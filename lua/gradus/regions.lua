@@ -144,8 +144,13 @@ function M.job(rg, job)
     end
   end
   local ok, err = pcall(job.regions, job, o)
-  if not ok then
-    error(("%s: %s"):format(rg.source or "regions", tostring(err):gsub("^job:regions: ", "")), 0)
+  if not ok then -- named where the profile sets a spacing or the skin's contours, else the file
+    local at = rg.source or "regions"
+    for _, name in ipairs(M.OWN) do
+      local r = rg[name]
+      if r and (r.hatch_at or r.contours_at) then at = r.hatch_at or r.contours_at break end
+    end
+    error(("%s: %s"):format(at, tostring(err):gsub("^job:regions: ", "")), 0)
   end
 end
 

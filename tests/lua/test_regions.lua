@@ -401,7 +401,7 @@ t.test("bad profiles: file:line, nothing written", function()
   t.raises(function() lattice.run(params { regions = profile("regions:\n  skin: {power: 5, speed: 900, focus: 1}\n") }, bad) end,
     "bad.yaml:2:%d+: unknown key 'focus'", "unknown key in a style")
   t.raises(function() lattice.run(params { regions = profile("regions:\n  skin: {power: 5, speed: 900, hatch: 0.0123}\n") }, bad) end,
-    "bad.yaml: regions: the hatch spacings 0.1 %(the job's%), 0.0123 %(skin%) mm have no common line spacing", "incommensurate spacings")
+    "bad.yaml:2:%d+: regions: the hatch spacings 0.1 %(the job's%), 0.0123 %(skin%) mm have no common line spacing", "incommensurate spacings")
   t.raises(function() lattice.run(params { regions = profile("regions:\n  core: {power: 5, speed: 900, hatch: 0.08}\n") }, bad) end,
     "bad.yaml:2:%d+: regions.core.hatch = 0.08 mm differs from the job's hatch spacing 0.1 mm", "core spacing is the job's")
   t.raises(function() lattice.run(params { regions = profile("regions:\n  downskin: {power: 5, speed: 900, contours: 2}\n") }, bad) end,
