@@ -22,6 +22,7 @@ static int l_field(lua_State *L) {
   o.cell = gr_opt_number(L, 3, "cell", hatch > 0 ? hatch / 2 : (hi[0] - lo[0]) / 200);
   o.refine = gr_opt_boolean(L, 3, "refine", 1);
   o.tol = gr_opt_number(L, 3, "tol", o.tol);
+  o.chord_tol = gr_opt_number(L, 3, "chord_tol", 0);
   gr_err e;
   gr_err_clear(&e);
   if (hatch > 0 && gr_slice_check_res(o.cell, hatch, &e)) { gr_field_free(f); return gr_lua_error(L, &e); }

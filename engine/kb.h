@@ -39,10 +39,13 @@ void gr_sha256_hex(const void *data, size_t n, char out[65]);
  * format and the grading rule (voxel-owned u, v, w); 3 since the nearer-patch
  * check of closest points and the widened chord brackets, 4 since in-plane
  * offsets are refined by Newton and closest-point refinements that do not
- * settle end on the surface (2026-11-25). A template whose
+ * settle end on the surface (2026-11-25), 5 since sections look for parts of
+ * the boundary narrower than the grid, chords follow cut-off tips towards
+ * their neighbours' corner and in-plane distances take their sign by the
+ * even-odd rule (2026-11-25). A template whose
  * signature begins otherwise was built under an older rule: its key is never
  * asked for again, `gradus kb list` marks it stale and prune removes it. */
-#define GR_TEMPLATE_GEOMETRY "{gradus_template: 4, grading: voxel-owned,"
+#define GR_TEMPLATE_GEOMETRY "{gradus_template: 5, grading: voxel-owned,"
 /* 1 when a signature is a Gradus template's of an older engine geometry
  * (it begins with "{gradus_template: " but not with GR_TEMPLATE_GEOMETRY). */
 int gr_kb_stale(const char *signature);

@@ -365,31 +365,57 @@ static int on_border(const gr_ms_win *w, const double *a, const double *b) {
  * farther than half the chord from the midpoint: thick graded sheets' pores
  * have such corners and tapering tips, narrower than a grid cell) or have
  * no curve near them. The end on the wrong side is moved out along the
- * normal, to 2 and 4 times as far, until the signs differ; fa, fb updated. */
+ * normal, to 2 and 4 times as far, until the signs differ. A tip that leans
+ * away from the normal, or a sliver the chord cuts twice, is then looked
+ * for towards the corner where the lines of the two neighbouring chords
+ * meet (cc, by the chord's first point seg; NaN where there is none or it
+ * is farther than reach): a point 1.5 or 3 times as far as that corner from
+ * the midpoint, bracketed against the midpoint where their signs differ
+ * (viac[i] = 1: its root is checked by corner_ok). fa, fb updated. */
 #define CHORD_REACH 2
 static int chord_extend(gr_slice_fn fn, void *ud, size_t m, double *ax, double *ay, double *bx, double *by,
-                        double *fa, double *fb, gr_err *e) {
-  double *px = malloc(2 * m * sizeof *px + 1), *pf = malloc(m * sizeof *pf + 1), *py = px + m;
+                        double *fa, double *fb, const double *cc, const size_t *seg, double reach,
+                        unsigned char *viac, gr_err *e) {
+  double *px = malloc(4 * m * sizeof *px + 1), *pf = malloc(2 * m * sizeof *pf + 1), *py = px + m;
+  double *mx = py + m, *my = mx + m, *mf = pf + m;
   size_t *id = malloc(m * sizeof *id + 1);
   int rc = px && pf && id ? GR_OK : gr_fail(e, GR_EMEM, "out of memory refining chords");
-  for (int round = 1; round <= CHORD_REACH && !rc; round++) {
-    double k = (double)(1 << round); /* the moved end's distance, in half chords */
+  for (int round = 1; round <= CHORD_REACH + 2 && !rc; round++) {
+    int corner = round > CHORD_REACH;
+    double k = corner ? 1.5 * (round - CHORD_REACH) : (double)(1 << round); /* the moved end's distance */
     size_t n = 0;
     for (size_t i = 0; i < m; i++) {
       int in_a = fa[i] < 0, out_b = fb[i] >= 0;
       if (in_a == out_b) continue; /* bracketed, or reversed (skipped) */
-      double mx = 0.5 * (ax[i] + bx[i]), my = 0.5 * (ay[i] + by[i]);
+      double cx = 0.5 * (ax[i] + bx[i]), cy = 0.5 * (ay[i] + by[i]);
       double ux = 0.5 * (bx[i] - ax[i]), uy = 0.5 * (by[i] - ay[i]);
       double sgn = in_a ? 1 : -1; /* both inside: move b out; both outside: move a in */
-      px[n] = mx + sgn * k * ux;
-      py[n] = my + sgn * k * uy;
+      if (corner) {
+        const double *c = cc + 2 * seg[i];
+        double vx = c[0] - cx, vy = c[1] - cy;
+        if (!(vx * vx + vy * vy < reach * reach)) continue; /* none, or too far */
+        sgn = 1;
+        ux = vx;
+        uy = vy;
+      }
+      px[n] = cx + sgn * k * ux;
+      py[n] = cy + sgn * k * uy;
+      mx[n] = cx;
+      my[n] = cy;
       id[n++] = i;
     }
-    if (n == 0) break;
+    if (n == 0) continue;
     if ((rc = gr_ms_eval(fn, ud, n, px, py, pf, e))) break;
+    if (corner && (rc = gr_ms_eval(fn, ud, n, mx, my, mf, e))) break;
     for (size_t q = 0; q < n; q++) {
       size_t i = id[q];
-      if (fa[i] < 0) {
+      if (corner) {
+        if ((pf[q] < 0) == (mf[q] < 0)) continue;
+        int pin = pf[q] < 0;
+        viac[i] = 1;
+        ax[i] = pin ? px[q] : mx[q]; ay[i] = pin ? py[q] : my[q]; fa[i] = pin ? pf[q] : mf[q];
+        bx[i] = pin ? mx[q] : px[q]; by[i] = pin ? my[q] : py[q]; fb[i] = pin ? mf[q] : pf[q];
+      } else if (fa[i] < 0) {
         if (pf[q] >= 0) { bx[i] = px[q]; by[i] = py[q]; fb[i] = pf[q]; }
       } else if (pf[q] < 0) {
         ax[i] = px[q]; ay[i] = py[q]; fa[i] = pf[q];
@@ -400,6 +426,45 @@ static int chord_extend(gr_slice_fn fn, void *ud, size_t m, double *ax, double *
   free(pf);
   free(id);
   return rc;
+}
+
+/* Where the line through p0, a meets the line through b, p1 (NaN when they
+ * are near parallel): the corner a chord a-b may have cut off. */
+static void chord_corner(const double *p0, const double *a, const double *b, const double *p1, double c[2]) {
+  double ux = a[0] - p0[0], uy = a[1] - p0[1], vx = p1[0] - b[0], vy = p1[1] - b[1];
+  double den = ux * vy - uy * vx, lu = hypot(ux, uy), lv = hypot(vx, vy);
+  double t = (b[0] - a[0]) * vy - (b[1] - a[1]) * vx;
+  if (!(fabs(den) > 1e-6 * lu * lv)) { c[0] = c[1] = NAN; return; }
+  t /= den;
+  c[0] = a[0] + t * ux;
+  c[1] = a[1] + t * uy;
+}
+
+/* Whether segments a-b and c-d cross at a point inside both. */
+static int seg_cross(const double *a, const double *b, const double *c, const double *d) {
+  double d1 = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+  double d2 = (b[0] - a[0]) * (d[1] - a[1]) - (b[1] - a[1]) * (d[0] - a[0]);
+  double d3 = (d[0] - c[0]) * (a[1] - c[1]) - (d[1] - c[1]) * (a[0] - c[0]);
+  double d4 = (d[0] - c[0]) * (b[1] - c[1]) - (d[1] - c[1]) * (b[0] - c[0]);
+  return ((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0));
+}
+
+/* May the root R found towards a corner be put between the chord's ends
+ * (point k of ring i and the next)? Not on top of either end, and the two
+ * new chords must not cross the ring's nearby chords (a root on another
+ * branch of the curve, past a crease, would fold the ring). */
+#define CORNER_NEAR 6
+static int corner_ok(const gr_rings *r, size_t i, size_t k, const double *R, double chord_tol) {
+  size_t len = gr_ring_len(r, i);
+  const double *p = gr_ring_xy(r, i), *A = p + 2 * k, *B = p + 2 * ((k + 1) % len);
+  if (hypot(R[0] - A[0], R[1] - A[1]) <= chord_tol || hypot(R[0] - B[0], R[1] - B[1]) <= chord_tol) return 0;
+  long span = (long)len / 2 < CORNER_NEAR ? (long)len / 2 : CORNER_NEAR;
+  for (long j = -span; j <= span; j++) {
+    if (j == 0) continue;
+    size_t a = (k + (size_t)(j + (long)len)) % len, b = (a + 1) % len;
+    if (seg_cross(A, R, p + 2 * a, p + 2 * b) || seg_cross(R, B, p + 2 * a, p + 2 * b)) return 0;
+  }
+  return 1;
 }
 
 /* Chord accuracy pass: for each ring segment, find the zero of fn on the
@@ -424,11 +489,15 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
     double *A = malloc(2 * n * sizeof *A + 1), *B = malloc(2 * n * sizeof *B + 1);
     double *root = malloc(2 * n * sizeof *root + 1), *ipt = malloc(2 * n * sizeof *ipt + 1);
     double *cm = malloc(2 * n * sizeof *cm + 1); /* chord midpoints, by first point */
+    double *cc = malloc(2 * n * sizeof *cc + 1); /* where the neighbouring chords' lines meet */
+    double *cn = malloc(2 * n * sizeof *cn + 1); /* chord normals */
     int *ins = calloc(n + 1, sizeof *ins);
     size_t *seg = malloc(n * sizeof *seg + 1);
+    size_t *rof = malloc(n * sizeof *rof + 1); /* ring of each point */
+    unsigned char *viac = calloc(n + 1, 1);     /* bracketed towards a corner */
     unsigned char *ok2 = NULL;
     size_t nins = 0;
-    if (!ax || !ay || !bx || !by || !fa || !fb || !A || !B || !root || !ipt || !ins || !seg || !cm) {
+    if (!ax || !ay || !bx || !by || !fa || !fb || !A || !B || !root || !ipt || !ins || !seg || !cm || !cc || !cn || !rof || !viac) {
       rc = gr_fail(e, GR_EMEM, "out of memory refining chords");
       goto pass_done;
     }
@@ -436,6 +505,7 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
     for (size_t i = 0; i < r->nrings; i++) {
       size_t len = gr_ring_len(r, i), st = r->start[i];
       const double *p = gr_ring_xy(r, i);
+      for (size_t k = 0; k < len; k++) rof[st + k] = i;
       for (size_t k = 0; k < len; k++) {
         if (ok[st + k]) continue;
         const double *a = p + 2 * k, *b = p + 2 * ((k + 1) % len);
@@ -447,6 +517,8 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
         ax[m] = mx - h * nx; ay[m] = my - h * ny;
         bx[m] = mx + h * nx; by[m] = my + h * ny;
         cm[2 * (st + k)] = mx; cm[2 * (st + k) + 1] = my;
+        cn[2 * (st + k)] = nx; cn[2 * (st + k) + 1] = ny;
+        chord_corner(p + 2 * ((k + len - 1) % len), a, b, p + 2 * ((k + 2) % len), cc + 2 * (st + k));
         seg[m] = st + k;
         m++;
       }
@@ -455,20 +527,25 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
     if (gfn && (rc = chord_newton(gfn, ud, tol, chord_tol, ax, ay, bx, by, seg, &m, ins, ipt, &nins, e)))
       goto pass_done;
     if ((rc = gr_ms_eval(fn, ud, m, ax, ay, fa, e)) || (rc = gr_ms_eval(fn, ud, m, bx, by, fb, e))) goto pass_done;
-    if ((rc = chord_extend(fn, ud, m, ax, ay, bx, by, fa, fb, e))) goto pass_done;
+    if ((rc = chord_extend(fn, ud, m, ax, ay, bx, by, fa, fb, cc, seg, w->reach, viac, e))) goto pass_done;
     size_t q = 0;
     for (size_t k = 0; k < m; k++) {
       if (!(fa[k] < 0 && fb[k] >= 0)) continue;
       A[2 * q] = ax[k]; A[2 * q + 1] = ay[k];
       B[2 * q] = bx[k]; B[2 * q + 1] = by[k];
-      fa[q] = fa[k]; fb[q] = fb[k]; seg[q] = seg[k];
+      fa[q] = fa[k]; fb[q] = fb[k]; seg[q] = seg[k]; viac[q] = viac[k];
       q++;
     }
     rc = roots_batch(fn, gfn, ud, q, A, B, fa, fb, 1, tol, root, e);
     if (rc) goto pass_done;
     /* mark insertions: ins[global point index] = 1 + index into ipt */
     for (size_t k = 0; k < q; k++) {
-      if (hypot(root[2 * k] - cm[2 * seg[k]], root[2 * k + 1] - cm[2 * seg[k] + 1]) > chord_tol) {
+      /* off the chord's line by more than chord_tol (a root found towards a
+       * corner that lies on the line itself is no missing curve) */
+      const double *c = cm + 2 * seg[k], *nn = cn + 2 * seg[k];
+      size_t ri = rof[seg[k]];
+      if (viac[k] && !corner_ok(r, ri, seg[k] - r->start[ri], root + 2 * k, chord_tol)) continue;
+      if (fabs((root[2 * k] - c[0]) * nn[0] + (root[2 * k + 1] - c[1]) * nn[1]) > chord_tol) {
         ipt[2 * nins] = root[2 * k];
         ipt[2 * nins + 1] = root[2 * k + 1];
         ins[seg[k]] = (int)++nins;
@@ -499,7 +576,7 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
     }
   pass_done:
     free(ax); free(ay); free(bx); free(by); free(fa); free(fb); free(A); free(B);
-    free(root); free(ipt); free(ins); free(seg); free(ok2); free(cm);
+    free(root); free(ipt); free(ins); free(seg); free(ok2); free(cm); free(cc); free(cn); free(rof); free(viac);
     if (rc || nins == 0) break;
   }
   gr_rings_free(nr);

@@ -23,8 +23,10 @@ typedef struct gr_ms_grid {
   const double *v;
 } gr_ms_grid;
 
-/* Window test for the chord pass: a segment along the window border is exact. */
-typedef struct gr_ms_win { int on; double lo[2], hi[2]; } gr_ms_win;
+/* The chord pass's window: with `on`, a segment along the window border
+ * [lo, hi] is exact; reach (mm, 0: none) bounds how far from a chord a
+ * corner it cut off is looked for (four cells of the grid contoured). */
+typedef struct gr_ms_win { int on; double lo[2], hi[2], reach; } gr_ms_win;
 
 /* Evaluate fn at n points in chunks (keeps scratch buffers of callers small). */
 int gr_ms_eval(gr_slice_fn fn, void *ud, size_t n, const double *x, const double *y, double *out, gr_err *e);

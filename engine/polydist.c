@@ -11,7 +11,6 @@
 typedef struct poly_dist {
   size_t ne;            /* edges */
   double *ab;           /* 4 per edge: ax ay bx by */
-  size_t *prv, *nxt;    /* neighbouring edges in the ring */
   double lo[2];         /* bucket grid origin, mm */
   double bs;            /* bucket size, mm */
   int bx, by;           /* buckets per axis */
@@ -20,11 +19,7 @@ typedef struct poly_dist {
 } poly_dist;
 
 static void pd_free(poly_dist *d) {
-  free(d->ab); free(d->prv); free(d->nxt); free(d->bstart); free(d->bedge);
-}
-
-static int left_of(const double *e4, double x, double y) {
-  return (e4[2] - e4[0]) * (y - e4[1]) - (e4[3] - e4[1]) * (x - e4[0]) > 0;
+  free(d->ab); free(d->bstart); free(d->bedge);
 }
 
 /* Nearest edge to (x, y) among edges within rmax (searching rings of buckets
@@ -70,17 +65,34 @@ static double pd_nearest(const poly_dist *d, double x, double y, double rmax, in
   return best;
 }
 
-/* Inside test from the nearest feature: rings are oriented (inside on the
- * left of every edge); at a vertex, the point is inside the interior angle. */
-static int pd_inside(const poly_dist *d, size_t ed, double t, double x, double y) {
-  const double *p = d->ab + 4 * ed;
-  if (t > 0 && t < 1) return left_of(p, x, y);
-  const double *e1, *e2; /* incoming, outgoing edge at the vertex */
-  if (t <= 0) { e1 = d->ab + 4 * d->prv[ed]; e2 = p; }
-  else { e1 = p; e2 = d->ab + 4 * d->nxt[ed]; }
-  double turn = (e1[2] - e1[0]) * (e2[3] - e2[1]) - (e1[3] - e1[1]) * (e2[2] - e2[0]);
-  int l1 = left_of(e1, x, y), l2 = left_of(e2, x, y);
-  return turn > 0 ? (l1 && l2) : (l1 || l2);
+/* Inside by the even-odd rule (as the offset grid's signs are): crossings
+ * of the horizontal line through (x, y) with the edges on one side of x,
+ * read from the bucket row of y, each edge counted in the one bucket that
+ * holds its crossing. Unlike a test from the nearest feature alone, this
+ * stays right where two rings touch or cross (a window's section whose
+ * rings meet along the window's cut): the sign then changes only on an
+ * edge, so the signed distance has no jump away from the boundary. */
+static int pd_inside(const poly_dist *d, double x, double y) {
+  int cj = (int)floor((y - d->lo[1]) / d->bs);
+  if (cj < 0 || cj >= d->by) return 0;
+  int ci = (int)floor((x - d->lo[0]) / d->bs);
+  int right = ci >= d->bx / 2; /* scan towards the nearer end of the row */
+  int ia = right ? (ci < 0 ? 0 : ci) : 0, ib = right ? d->bx - 1 : (ci >= d->bx ? d->bx - 1 : ci);
+  int odd = 0;
+  for (int i = ia; i <= ib; i++) {
+    size_t bk = (size_t)i + (size_t)d->bx * cj;
+    for (size_t q = d->bstart[bk]; q < d->bstart[bk + 1]; q++) {
+      const double *a = d->ab + 4 * d->bedge[q];
+      if ((a[1] > y) == (a[3] > y)) continue;
+      double xc = a[0] + (y - a[1]) * (a[2] - a[0]) / (a[3] - a[1]);
+      int i0 = (int)floor((fmin(a[0], a[2]) - d->lo[0]) / d->bs), i1 = (int)floor((fmax(a[0], a[2]) - d->lo[0]) / d->bs);
+      int ic = (int)floor((xc - d->lo[0]) / d->bs);
+      ic = ic < i0 ? i0 : ic > i1 ? i1 : ic;
+      if (ic > d->bx - 1) ic = d->bx - 1;
+      if (ic == i && (right ? xc > x : xc <= x)) odd ^= 1;
+    }
+  }
+  return odd;
 }
 
 /* Exact signed distance (negative inside) of (x, y) to the edges; q (may be
@@ -92,7 +104,7 @@ static double pd_signed(const poly_dist *d, double x, double y, double q[2]) {
   for (double r = 2 * d->bs; !isfinite(d2); r *= 4) d2 = pd_nearest(d, x, y, r, 0, &ed, &t);
   const double *a = d->ab + 4 * ed;
   if (q) { q[0] = a[0] + t * (a[2] - a[0]); q[1] = a[1] + t * (a[3] - a[1]); }
-  return pd_inside(d, ed, t, x, y) ? -sqrt(d2) : sqrt(d2);
+  return pd_inside(d, x, y) ? -sqrt(d2) : sqrt(d2);
 }
 
 /* Signed distance (negative inside) + b, exact. */
@@ -130,17 +142,14 @@ static int same_pt(const double *p, size_t a, size_t b) {
 static int pd_build(poly_dist *d, const gr_rings *r, double bs, gr_err *e) {
   memset(d, 0, sizeof *d);
   d->ab = malloc(4 * r->npts * sizeof *d->ab + 1);
-  d->prv = malloc(r->npts * sizeof *d->prv + 1);
-  d->nxt = malloc(r->npts * sizeof *d->nxt + 1);
-  if (!d->ab || !d->prv || !d->nxt) return gr_fail(e, GR_EMEM, "out of memory: %zu edges", r->npts);
+  if (!d->ab) return gr_fail(e, GR_EMEM, "out of memory: %zu edges", r->npts);
   double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
   for (size_t i = 0; i < r->nrings; i++) {
-    size_t n = gr_ring_len(r, i), st = d->ne;
+    size_t n = gr_ring_len(r, i);
     const double *p = gr_ring_xy(r, i);
     /* edges between distinct consecutive points only: a repeated point (a
      * section passing exactly through a grid node, a snapped face corner)
-     * would make a zero-length edge, which has no side, and pd_inside at
-     * its vertex would read "outside" from it (spurious offset points) */
+     * would make a zero-length edge, which has no direction */
     size_t s0 = 0;
     while (s0 < n && same_pt(p, s0, (s0 + n - 1) % n)) s0++;
     for (size_t c = 0; c < n && s0 < n; c++) {
@@ -149,10 +158,6 @@ static int pd_build(poly_dist *d, const gr_rings *r, double bs, gr_err *e) {
       double *a = d->ab + 4 * d->ne++;
       a[0] = p[2 * k]; a[1] = p[2 * k + 1]; a[2] = p[2 * k1]; a[3] = p[2 * k1 + 1];
       for (int q = 0; q < 2; q++) { lo[q] = fmin(lo[q], a[q]); hi[q] = fmax(hi[q], a[q]); }
-    }
-    for (size_t q = st; q < d->ne; q++) {
-      d->prv[q] = q > st ? q - 1 : d->ne - 1;
-      d->nxt[q] = q + 1 < d->ne ? q + 1 : st;
     }
   }
   if (d->ne == 0) lo[0] = lo[1] = hi[0] = hi[1] = 0; /* no edges: one bucket */
@@ -344,7 +349,7 @@ int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
     rc = gr_ms_contour(&g, pd_fn, pd_gfn, &d, 1, tol, out, e);
   }
   if (!rc && chord_tol > 0) {
-    gr_ms_win w = {0, {0, 0}, {0, 0}};
+    gr_ms_win w = {0, {0, 0}, {0, 0}, 4 * fmax(g.hx, g.hy)};
     rc = gr_ms_chord_refine(out, pd_fn, pd_gfn, &d, tol, chord_tol, &w, e);
   }
   if (!rc) rc = gr_rings_nest(out, e);

@@ -83,8 +83,8 @@ static int keep_runs(gr_skinring *s, const gr_rings *r, size_t ri, double off, g
   size_t nk = 0;
   for (size_t a = 0; a < m; a++) {
     double q[2], d = fabs(gr_polydist_at(s->pd, p[2 * a], p[2 * a + 1], q));
-    /* a point the offset placed off its distance (rare, where the nearest
-     * boundary switches between parts) is not scanned */
+    /* a guard: a point off its distance by 1 um or more is not scanned
+     * (none is since polydist's sign follows the even-odd rule) */
     int on = fabs(d - off) < 1e-3 ? on_surface(s, q, e) : 0;
     if (on < 0) { free(keep); return -on; }
     keep[a] = (char)on;

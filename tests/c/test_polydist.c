@@ -142,9 +142,60 @@ TEST(repeated_corner_points) {
   }
 }
 
+/* Rings that cross (a window's section whose void sliver pokes a few um out
+ * through the window's cut, as templates can give): the even-odd region is
+ * the square [0,1]^2 less the slot x in [-0.01, 0.4],
+ * y in [0.45, 0.55], plus the slot's sliver outside the square. The signed
+ * distance must be the distance to the nearest edge with the even-odd sign
+ * (no jump away from the edges), and every point of the offset by 0.1 must
+ * lie at 0.1 from the edges. The nearest-feature sign got 0.12 mm wrong. */
+static double seg_dist(double x, double y, double ax, double ay, double bx, double by) {
+  double ex = bx - ax, ey = by - ay, t = ((x - ax) * ex + (y - ay) * ey) / (ex * ex + ey * ey);
+  t = t < 0 ? 0 : t > 1 ? 1 : t;
+  return hypot(ax + t * ex - x, ay + t * ey - y);
+}
+static double crossed_dist(double x, double y) {
+  const double P[2][8] = {{0, 0, 1, 0, 1, 1, 0, 1}, {-0.01, 0.45, 0.4, 0.45, 0.4, 0.55, -0.01, 0.55}};
+  double d = INFINITY;
+  for (int r = 0; r < 2; r++)
+    for (int k = 0; k < 4; k++)
+      d = fmin(d, seg_dist(x, y, P[r][2 * k], P[r][2 * k + 1], P[r][(2 * k + 2) % 8], P[r][(2 * k + 3) % 8]));
+  int in_sq = x > 0 && x < 1 && y > 0 && y < 1, in_slot = x > -0.01 && x < 0.4 && y > 0.45 && y < 0.55;
+  return in_sq != in_slot ? -d : d;
+}
+TEST(crossing_rings_even_odd) {
+  gr_rings *r = gr_rings_new();
+  const double sq[] = {0, 0, 1, 0, 1, 1, 0, 1}, slot[] = {-0.01, 0.45, -0.01, 0.55, 0.4, 0.55, 0.4, 0.45};
+  for (int k = 0; k < 4; k++) gr_rings_point(r, sq[2 * k], sq[2 * k + 1]);
+  gr_rings_close(r);
+  for (int k = 0; k < 4; k++) gr_rings_point(r, slot[2 * k], slot[2 * k + 1]);
+  gr_rings_close(r);
+  gr_err e;
+  gr_err_clear(&e);
+  gr_polydist *pd = gr_polydist_new(r, 0.05, &e);
+  CHECK(pd != NULL, "%s", e.msg);
+  double worst = 0;
+  for (int i = 0; i <= 130 && pd; i++)
+    for (int j = 0; j <= 130; j++) {
+      double x = -0.1 + i * 0.009 + 1e-4, y = -0.1 + j * 0.009 + 2e-4;
+      worst = fmax(worst, fabs(gr_polydist_at(pd, x, y, NULL) - crossed_dist(x, y)));
+    }
+  CHECK(worst < 1e-12, "signed distance off the even-odd truth by %.3g mm", worst);
+  gr_rings *o = gr_rings_new();
+  int rc = gr_offset_rings_opt(r, 0.1, 0.025, 1e-6, 2e-4, o, &e);
+  CHECK(rc == 0, "%s", e.msg);
+  double off = 0;
+  for (size_t k = 0; k < o->npts; k++) off = fmax(off, fabs(crossed_dist(o->xy[2 * k], o->xy[2 * k + 1]) + 0.1));
+  CHECK(o->npts > 0 && off < 1e-6, "offset by 0.1: %zu points, one %.3g um off", o->npts, off * 1e3);
+  gr_rings_free(o);
+  gr_polydist_free(pd);
+  gr_rings_free(r);
+}
+
 int main(void) {
   RUN(within_matches_the_distance);
   RUN(within_analytic);
   RUN(repeated_corner_points);
+  RUN(crossing_rings_even_odd);
   DONE();
 }
