@@ -364,8 +364,9 @@ static int on_border(const gr_ms_win *w, const double *a, const double *b) {
  * both ends cut across a corner sharper than a right angle (the curve runs
  * farther than half the chord from the midpoint: thick graded sheets' pores
  * have such corners and tapering tips, narrower than a grid cell) or have
- * no curve near them. The end on the wrong side is moved out along the
- * normal, to 2 and 4 times as far, until the signs differ. A tip that leans
+ * no curve near them. If the midpoint has the other sign, it takes the
+ * place of the end on that side; else the end on the wrong side is moved
+ * out along the normal, to 2 and 4 times as far, until the signs differ. A tip that leans
  * away from the normal, or a sliver the chord cuts twice, is then looked
  * for towards the corner where the lines of the two neighbouring chords
  * meet (cc, by the chord's first point seg; NaN where there is none or it
@@ -380,6 +381,24 @@ static int chord_extend(gr_slice_fn fn, void *ud, size_t m, double *ax, double *
   double *mx = py + m, *my = mx + m, *mf = pf + m;
   size_t *id = malloc(m * sizeof *id + 1);
   int rc = px && pf && id ? GR_OK : gr_fail(e, GR_EMEM, "out of memory refining chords");
+  /* first the midpoint: where it has the other sign (the chord crosses a
+   * sliver twice), the boundary lies between it and the end on the chord's
+   * own side (a when both are inside, b when both are outside) */
+  size_t n0 = 0;
+  for (size_t i = 0; i < m && !rc; i++) {
+    if ((fa[i] < 0) == (fb[i] >= 0)) continue;
+    px[n0] = 0.5 * (ax[i] + bx[i]);
+    py[n0] = 0.5 * (ay[i] + by[i]);
+    id[n0++] = i;
+  }
+  if (!rc && n0) rc = gr_ms_eval(fn, ud, n0, px, py, pf, e);
+  for (size_t q = 0; q < n0 && !rc; q++) {
+    size_t i = id[q];
+    if ((pf[q] < 0) == (fa[i] < 0)) continue;
+    viac[i] = 1;
+    if (fa[i] < 0) { bx[i] = px[q]; by[i] = py[q]; fb[i] = pf[q]; }
+    else { ax[i] = px[q]; ay[i] = py[q]; fa[i] = pf[q]; }
+  }
   for (int round = 1; round <= CHORD_REACH + 2 && !rc; round++) {
     int corner = round > CHORD_REACH;
     double k = corner ? 1.5 * (round - CHORD_REACH) : (double)(1 << round); /* the moved end's distance */
