@@ -62,6 +62,21 @@ local function seg_dist(x, y, ax, ay, bx, by)
   return math.sqrt((ax + s * ex - x) ^ 2 + (ay + s * ey - y) ^ 2)
 end
 
+-- the field whose void (f > 0) is the polygon P (counter-clockwise, flat
+-- list): the distance to its edges, positive inside (even-odd)
+local function polygon_void(P)
+  return gradus.field.lua(function(x, y)
+    local d, inside = math.huge, false
+    for k = 1, #P, 2 do
+      local k2 = k + 2 > #P and 1 or k + 2
+      d = math.min(d, seg_dist(x, y, P[k], P[k + 1], P[k2], P[k2 + 1]))
+      local ay, by = P[k + 1], P[k2 + 1]
+      if (ay > y) ~= (by > y) and x < P[k] + (y - ay) * (P[k2] - P[k]) / (by - ay) then inside = not inside end
+    end
+    return inside and d or -d
+  end)
+end
+
 -- the largest distance of a ring point from the boundary of the polygon P
 -- (flat list), points outside the box skipped
 local function off_boundary(rings, P, skip)
@@ -90,19 +105,7 @@ end
 -- lost it whole.
 t.test("a pore narrower than the grid: a thin triangle found to its tip", function()
   local T = { 0.506, 0.2, 0.518, 0.2, 0.512, 0.7 } -- counter-clockwise, area 0.003 mm2
-  local f = gradus.field.lua(function(x, y)
-    local d = math.huge
-    for k = 1, 5, 2 do
-      local k2 = k + 2 > 5 and 1 or k + 2
-      d = math.min(d, seg_dist(x, y, T[k], T[k + 1], T[k2], T[k2 + 1]))
-    end
-    local inside = true
-    for k = 1, 5, 2 do
-      local k2 = k + 2 > 5 and 1 or k + 2
-      if (T[k2] - T[k]) * (y - T[k + 1]) - (T[k2 + 1] - T[k + 1]) * (x - T[k]) < 0 then inside = false end
-    end
-    return inside and d or -d -- the triangle is void
-  end)
+  local f = polygon_void(T)
   local r = gradus.slice.field(f, 0, { lo = { 0, 0 }, hi = { 1, 1 }, cell = 0.025, chord_tol = 2e-4 })
   t.eq(r:count(), 2, "the square and the pore")
   t.near(r:area(), 1 - 0.003, 2e-6, "area: the square less the triangle")
@@ -136,6 +139,21 @@ t.test("a sliver along a jump narrower than the grid", function()
   local P = { 0.508, 0, 0.52, 0, 0.52, 0.5 }
   local worst = off_boundary(r, P, function(x, y) return x < 0.4 or x > 0.6 or y <= 0 or y >= 1 end)
   t.ok(worst < 1e-6, ("every sliver point on its boundary (%.3g um off)"):format(worst * 1e3))
+end)
+
+-- A pore whose top splits into two horns (as neovius' sheets have on a
+-- mirror plane): the chord from a horn's side to the notch between them
+-- crosses the horn twice, its midpoint in the void and both ends of its
+-- normal bracket in the solid; the midpoint then brackets the boundary.
+-- Before, the notch region came out 0.00093 mm2 off.
+t.test("a pore with two horns: the chord across a horn follows it", function()
+  local P = { 0.49, 0.2, 0.51, 0.2, 0.506, 0.32, 0.5, 0.29, 0.494, 0.32 }
+  local r = gradus.slice.field(polygon_void(P), 0, { lo = { 0, 0 }, hi = { 1, 1 }, cell = 0.025, chord_tol = 2e-4 })
+  local A = 0
+  for k = 1, #P, 2 do local k2 = k + 2 > #P and 1 or k + 2; A = A + P[k] * P[k2 + 1] - P[k2] * P[k + 1] end
+  t.near(r:area(), 1 - A / 2, 1e-6, "area: the square less the pore")
+  local worst = off_boundary(r, P, function(x, y) return x < 0.4 or x > 0.6 or y <= 0 or y >= 1 end)
+  t.ok(worst < 1e-6, ("every pore point on its boundary (%.3g um off)"):format(worst * 1e3))
 end)
 
 t.test("eq. (7): a grid coarser than d/2 is refused", function()
