@@ -38,6 +38,14 @@ static inline double gr_len2d(double dx, double dy) { return sqrt(dx * dx + dy *
  * are calls, and show in hot loops such as a tree build). */
 static inline double gr_lo(double a, double b) { return b < a ? b : a; }
 static inline double gr_hi(double a, double b) { return b > a ? b : a; }
+/* Where the edge (ax, ay)-(bx, by) crosses the line at height y, by the
+ * half-open rule of the even-odd test (an end at y counts as above): 1 with
+ * *x set, else 0. */
+static inline int gr_edge_at_y(double ax, double ay, double bx, double by, double y, double *x) {
+  if ((ay > y) == (by > y)) return 0;
+  *x = ax + (y - ay) * (bx - ax) / (by - ay);
+  return 1;
+}
 
 /* Make *p hold at least `need` elements of `elsize` bytes; *cap is updated.
  * Returns GR_OK or GR_EMEM (then *p is unchanged). */

@@ -75,7 +75,8 @@ static int strips_contain(const strips *s, double x, double y) {
   if (k0 > k1) return 0;
   for (size_t q = s->start[k0]; q < s->start[k0 + 1]; q++) {
     const double *d = s->e + 4 * q;
-    if ((d[1] > y) != (d[3] > y) && x < d[0] + (y - d[1]) * (d[2] - d[0]) / (d[3] - d[1])) in = !in;
+    double xc;
+    if (gr_edge_at_y(d[0], d[1], d[2], d[3], y, &xc) && x < xc) in = !in;
   }
   return in;
 }

@@ -360,23 +360,44 @@ static int on_border(const gr_ms_win *w, const double *a, const double *b) {
   return 0;
 }
 
+/* Where the line through p0, a meets the line through b, p1 (NaN when they
+ * are near parallel): the corner a chord a-b may have cut off. */
+static void chord_corner(const double *p0, const double *a, const double *b, const double *p1, double c[2]) {
+  double ux = a[0] - p0[0], uy = a[1] - p0[1], vx = p1[0] - b[0], vy = p1[1] - b[1];
+  double den = ux * vy - uy * vx, lu = hypot(ux, uy), lv = hypot(vx, vy);
+  double t = (b[0] - a[0]) * vy - (b[1] - a[1]) * vx;
+  if (!(fabs(den) > 1e-6 * lu * lv)) { c[0] = c[1] = NAN; return; }
+  t /= den;
+  c[0] = a[0] + t * ux;
+  c[1] = a[1] + t * uy;
+}
+
+/* The corner of the chord from point g (global index) of ring i. */
+static void chord_corner_of(const gr_rings *r, size_t i, size_t g, double c[2]) {
+  size_t len = gr_ring_len(r, i), k = g - r->start[i];
+  const double *p = gr_ring_xy(r, i);
+  chord_corner(p + 2 * ((k + len - 1) % len), p + 2 * k, p + 2 * ((k + 1) % len), p + 2 * ((k + 2) % len), c);
+}
+
 /* Chords whose bracket (+-half the chord along the normal) has one sign at
  * both ends cut across a corner sharper than a right angle (the curve runs
  * farther than half the chord from the midpoint: thick graded sheets' pores
  * have such corners and tapering tips, narrower than a grid cell) or have
  * no curve near them. If the midpoint has the other sign, it takes the
  * place of the end on that side; else the end on the wrong side is moved
- * out along the normal, to 2 and 4 times as far, until the signs differ. A tip that leans
- * away from the normal, or a sliver the chord cuts twice, is then looked
- * for towards the corner where the lines of the two neighbouring chords
- * meet (cc, by the chord's first point seg; NaN where there is none or it
- * is farther than reach): a point 1.5 or 3 times as far as that corner from
- * the midpoint, bracketed against the midpoint where their signs differ
- * (viac[i] = 1: its root is checked by corner_ok). fa, fb updated. */
+ * out along the normal, to 2 and 4 times as far, until the signs differ.
+ * A tip that leans away from the normal is then looked for towards the
+ * corner where the lines of the two neighbouring chords meet
+ * (chord_corner_of the chord whose first point is seg, rof its ring; none
+ * where they are near parallel or it is farther than reach): a point 1.5
+ * or 3 times as far as that corner from the midpoint, bracketed against
+ * the midpoint where their signs differ. viac[i] = 1 where a bracket came
+ * from the midpoint or the corner (its root is checked by corner_ok).
+ * fa, fb updated. */
 #define CHORD_REACH 2
 static int chord_extend(gr_slice_fn fn, void *ud, size_t m, double *ax, double *ay, double *bx, double *by,
-                        double *fa, double *fb, const double *cc, const size_t *seg, double reach,
-                        unsigned char *viac, gr_err *e) {
+                        double *fa, double *fb, const gr_rings *r, const size_t *rof, const size_t *seg,
+                        double reach, unsigned char *viac, gr_err *e) {
   double *px = malloc(4 * m * sizeof *px + 1), *pf = malloc(2 * m * sizeof *pf + 1), *py = px + m;
   double *mx = py + m, *my = mx + m, *mf = pf + m;
   size_t *id = malloc(m * sizeof *id + 1);
@@ -410,7 +431,8 @@ static int chord_extend(gr_slice_fn fn, void *ud, size_t m, double *ax, double *
       double ux = 0.5 * (bx[i] - ax[i]), uy = 0.5 * (by[i] - ay[i]);
       double sgn = in_a ? 1 : -1; /* both inside: move b out; both outside: move a in */
       if (corner) {
-        const double *c = cc + 2 * seg[i];
+        double c[2];
+        chord_corner_of(r, rof[seg[i]], seg[i], c);
         double vx = c[0] - cx, vy = c[1] - cy;
         if (!(vx * vx + vy * vy < reach * reach)) continue; /* none, or too far */
         sgn = 1;
@@ -445,18 +467,6 @@ static int chord_extend(gr_slice_fn fn, void *ud, size_t m, double *ax, double *
   free(pf);
   free(id);
   return rc;
-}
-
-/* Where the line through p0, a meets the line through b, p1 (NaN when they
- * are near parallel): the corner a chord a-b may have cut off. */
-static void chord_corner(const double *p0, const double *a, const double *b, const double *p1, double c[2]) {
-  double ux = a[0] - p0[0], uy = a[1] - p0[1], vx = p1[0] - b[0], vy = p1[1] - b[1];
-  double den = ux * vy - uy * vx, lu = hypot(ux, uy), lv = hypot(vx, vy);
-  double t = (b[0] - a[0]) * vy - (b[1] - a[1]) * vx;
-  if (!(fabs(den) > 1e-6 * lu * lv)) { c[0] = c[1] = NAN; return; }
-  t /= den;
-  c[0] = a[0] + t * ux;
-  c[1] = a[1] + t * uy;
 }
 
 /* Whether segments a-b and c-d cross at a point inside both. */
@@ -508,7 +518,6 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
     double *A = malloc(2 * n * sizeof *A + 1), *B = malloc(2 * n * sizeof *B + 1);
     double *root = malloc(2 * n * sizeof *root + 1), *ipt = malloc(2 * n * sizeof *ipt + 1);
     double *cm = malloc(2 * n * sizeof *cm + 1); /* chord midpoints, by first point */
-    double *cc = malloc(2 * n * sizeof *cc + 1); /* where the neighbouring chords' lines meet */
     double *cn = malloc(2 * n * sizeof *cn + 1); /* chord normals */
     int *ins = calloc(n + 1, sizeof *ins);
     size_t *seg = malloc(n * sizeof *seg + 1);
@@ -516,7 +525,7 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
     unsigned char *viac = calloc(n + 1, 1);     /* bracketed towards a corner */
     unsigned char *ok2 = NULL;
     size_t nins = 0;
-    if (!ax || !ay || !bx || !by || !fa || !fb || !A || !B || !root || !ipt || !ins || !seg || !cm || !cc || !cn || !rof || !viac) {
+    if (!ax || !ay || !bx || !by || !fa || !fb || !A || !B || !root || !ipt || !ins || !seg || !cm || !cn || !rof || !viac) {
       rc = gr_fail(e, GR_EMEM, "out of memory refining chords");
       goto pass_done;
     }
@@ -537,7 +546,6 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
         bx[m] = mx + h * nx; by[m] = my + h * ny;
         cm[2 * (st + k)] = mx; cm[2 * (st + k) + 1] = my;
         cn[2 * (st + k)] = nx; cn[2 * (st + k) + 1] = ny;
-        chord_corner(p + 2 * ((k + len - 1) % len), a, b, p + 2 * ((k + 2) % len), cc + 2 * (st + k));
         seg[m] = st + k;
         m++;
       }
@@ -546,7 +554,7 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
     if (gfn && (rc = chord_newton(gfn, ud, tol, chord_tol, ax, ay, bx, by, seg, &m, ins, ipt, &nins, e)))
       goto pass_done;
     if ((rc = gr_ms_eval(fn, ud, m, ax, ay, fa, e)) || (rc = gr_ms_eval(fn, ud, m, bx, by, fb, e))) goto pass_done;
-    if ((rc = chord_extend(fn, ud, m, ax, ay, bx, by, fa, fb, cc, seg, w->reach, viac, e))) goto pass_done;
+    if ((rc = chord_extend(fn, ud, m, ax, ay, bx, by, fa, fb, r, rof, seg, w->reach, viac, e))) goto pass_done;
     size_t q = 0;
     for (size_t k = 0; k < m; k++) {
       if (!(fa[k] < 0 && fb[k] >= 0)) continue;
@@ -595,7 +603,7 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
     }
   pass_done:
     free(ax); free(ay); free(bx); free(by); free(fa); free(fb); free(A); free(B);
-    free(root); free(ipt); free(ins); free(seg); free(ok2); free(cm); free(cc); free(cn); free(rof); free(viac);
+    free(root); free(ipt); free(ins); free(seg); free(ok2); free(cm); free(cn); free(rof); free(viac);
     if (rc || nins == 0) break;
   }
   gr_rings_free(nr);

@@ -81,7 +81,8 @@ static int ring_contains(const gr_rings *r, size_t i, double x, double y) {
   int in = 0;
   for (size_t k = 0, j = n - 1; k < n; j = k++) {
     double xk = p[2 * k], yk = p[2 * k + 1], xj = p[2 * j], yj = p[2 * j + 1];
-    if ((yk > y) != (yj > y) && x < (xj - xk) * (y - yk) / (yj - yk) + xk) in = !in;
+    double xc;
+    if (gr_edge_at_y(xk, yk, xj, yj, y, &xc) && x < xc) in = !in;
   }
   return in;
 }

@@ -83,8 +83,8 @@ static int pd_inside(const poly_dist *d, double x, double y) {
     size_t bk = (size_t)i + (size_t)d->bx * cj;
     for (size_t q = d->bstart[bk]; q < d->bstart[bk + 1]; q++) {
       const double *a = d->ab + 4 * d->bedge[q];
-      if ((a[1] > y) == (a[3] > y)) continue;
-      double xc = a[0] + (y - a[1]) * (a[2] - a[0]) / (a[3] - a[1]);
+      double xc;
+      if (!gr_edge_at_y(a[0], a[1], a[2], a[3], y, &xc)) continue;
       int i0 = (int)floor((fmin(a[0], a[2]) - d->lo[0]) / d->bs), i1 = (int)floor((fmax(a[0], a[2]) - d->lo[0]) / d->bs);
       int ic = (int)floor((xc - d->lo[0]) / d->bs);
       ic = ic < i0 ? i0 : ic > i1 ? i1 : ic;
@@ -226,9 +226,10 @@ static double *pd_row_crossings(const poly_dist *d, const gr_ms_grid *g, size_t 
       pd_edge_rows(g, a[1], a[3], &j0, &j1);
       for (int j = j0; j <= j1; j++) {
         double y = g->y0 + j * g->hy;
-        if ((a[1] > y) == (a[3] > y)) continue;
+        double xc;
+        if (!gr_edge_at_y(a[0], a[1], a[2], a[3], y, &xc)) continue;
         if (pass == 0) rs[j + 1]++;
-        else xs[rs[j]++] = a[0] + (y - a[1]) * (a[2] - a[0]) / (a[3] - a[1]);
+        else xs[rs[j]++] = xc;
       }
     }
     if (pass == 0) {
