@@ -153,8 +153,20 @@ static double box_d2(const bnode *n, const double p[3]) {
   return s;
 }
 
-int gr_bvh_closest(const gr_bvh *b, const double p[3], double maxdist, gr_hit *h) {
-  double best = isfinite(maxdist) ? maxdist * maxdist : INFINITY;
+/* Largest squared distance from c to a point of n's box. */
+static double box_far2(const bnode *n, const double c[3]) {
+  double s = 0;
+  for (int a = 0; a < 3; a++) {
+    double d = fmax(fabs(c[a] - n->lo[a]), fabs(n->hi[a] - c[a]));
+    s += d * d;
+  }
+  return s;
+}
+
+/* The closest point to p within maxdist; with c, only among points at least
+ * r from c (boxes wholly nearer to c are skipped). */
+static void closest(const gr_bvh *b, const double p[3], double maxdist, const double *c, double r, gr_hit *h) {
+  double best = isfinite(maxdist) ? maxdist * maxdist : INFINITY, r2 = r * r;
   h->tri = -1;
   h->dist = INFINITY;
   int stack[128], sp = 0;
@@ -162,14 +174,14 @@ int gr_bvh_closest(const gr_bvh *b, const double p[3], double maxdist, gr_hit *h
   const gr_mesh *m = b->m;
   while (sp) {
     const bnode *n = &b->node[stack[--sp]];
-    if (box_d2(n, p) > best) continue;
+    if (box_d2(n, p) > best || (c && box_far2(n, c) < r2)) continue;
     if (n->left < 0) {
       for (int i = n->first; i < n->first + n->count; i++) {
         uint32_t t = b->tri[i];
         double q[3];
         gr_closest_on_triangle(p, m->v + 3 * m->f[3 * t], m->v + 3 * m->f[3 * t + 1], m->v + 3 * m->f[3 * t + 2], q);
         double d2 = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]);
-        if (d2 <= best) {
+        if (d2 <= best && !(c && (q[0] - c[0]) * (q[0] - c[0]) + (q[1] - c[1]) * (q[1] - c[1]) + (q[2] - c[2]) * (q[2] - c[2]) < r2)) {
           best = d2;
           h->tri = t;
           memcpy(h->q, q, sizeof h->q);
@@ -183,6 +195,15 @@ int gr_bvh_closest(const gr_bvh *b, const double p[3], double maxdist, gr_hit *h
     else { stack[sp++] = n->left; stack[sp++] = n->right; }
   }
   if (h->tri >= 0) h->dist = sqrt(best);
+}
+
+int gr_bvh_closest(const gr_bvh *b, const double p[3], double maxdist, gr_hit *h) {
+  closest(b, p, maxdist, NULL, 0, h);
+  return GR_OK;
+}
+
+int gr_bvh_closest_away(const gr_bvh *b, const double p[3], double maxdist, const double c[3], double r, gr_hit *h) {
+  closest(b, p, maxdist, c, r, h);
   return GR_OK;
 }
 

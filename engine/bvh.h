@@ -19,6 +19,9 @@ typedef struct gr_hit {
 } gr_hit;
 /* Closest point of the mesh to p within maxdist (INFINITY: no cut-off). */
 int gr_bvh_closest(const gr_bvh *b, const double p[3], double maxdist, gr_hit *h);
+/* The same among the mesh's points at least r from c (another patch of the
+ * surface than the one around c). */
+int gr_bvh_closest_away(const gr_bvh *b, const double p[3], double maxdist, const double c[3], double r, gr_hit *h);
 /* Exact closest point of triangle abc to p. */
 void gr_closest_on_triangle(const double p[3], const double a[3], const double b[3],
                             const double c[3], double q[3]);

@@ -7,16 +7,17 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* gr_offset_rings lives in polydist.c; a weak reference lets this file link
- * (with a simple miter offset as fallback) while polydist.c is not there. */
-#pragma weak gr_offset_rings
+/* gr_offset_rings_opt lives in polydist.c; a weak reference lets this file
+ * link (with a simple miter offset as fallback) while polydist.c is not there. */
+#pragma weak gr_offset_rings_opt
 
 /* Fallback offset (used while polydist.c's gr_offset_rings is not linked):
  * each vertex moves to the intersection of its two edges' lines shifted by b
  * to the left (inside, for correctly oriented rings). Exact for convex
  * polygons; a ring whose area changes sign or vanishes is dropped. */
-int gr_hatch_miter_offset(const gr_rings *in, double b, double cell, gr_rings *out, gr_err *e) {
+int gr_hatch_miter_offset(const gr_rings *in, double b, double cell, const double *box, gr_rings *out, gr_err *e) {
   (void)cell;
+  (void)box;
   gr_rings_clear(out);
   for (size_t r = 0; r < in->nrings; r++) {
     const double *p = gr_ring_xy(in, r);
@@ -49,9 +50,14 @@ int gr_hatch_miter_offset(const gr_rings *in, double b, double cell, gr_rings *o
   return GR_OK;
 }
 
+/* The default offset: polydist.c's, crossings to 1e-6 mm. */
+static int offset_default(const gr_rings *in, double b, double cell, const double *box, gr_rings *out, gr_err *e) {
+  return gr_offset_rings_opt(in, b, cell, 1e-6, 0, box, out, e);
+}
+
 static gr_offset_fn pick_offset(const gr_hatch_opts *o) {
   if (o->offset) return o->offset;
-  if (gr_offset_rings) return gr_offset_rings;
+  if (gr_offset_rings_opt) return offset_default;
   return gr_hatch_miter_offset;
 }
 
@@ -605,7 +611,7 @@ static int contours_region(const gr_rings *section, const gr_hatch_opts *o, gr_l
   if (gr_rings_copy(sec, section)) { rc = gr_fail(e, GR_EMEM, "hatch: out of memory"); goto done; }
   if ((rc = gr_rings_nest(sec, e))) goto done;
   /* offset by b: the first contour, and the thin-wall test */
-  if ((rc = off(sec, b, cell, ofs, e))) goto done;
+  if ((rc = off(sec, b, cell, o->thin_box, ofs, e))) goto done;
   if (nc > 0 && (rc = emit_rings(ofs, o, cl, rep, e))) goto done;
   /* which components did the offset by b reach? (deepest outer ring
    * containing a point of each offset ring; bounding boxes first) */
@@ -640,14 +646,14 @@ static int contours_region(const gr_rings *section, const gr_hatch_opts *o, gr_l
   double last = b; /* the offset held in ofs */
   for (int i = 1; i < nc; i++) {
     last = b + i * d;
-    if ((rc = off(sec, last, cell, ofs, e))) goto done;
+    if ((rc = off(sec, last, cell, o->thin_box, ofs, e))) goto done;
     if ((rc = emit_rings(ofs, o, cl, rep, e))) goto done;
   }
   if (h == last) { /* default gap: the hatch region is the last contour */
     gr_rings t = *reg; /* take the offset's arrays, hand reg's back to be freed */
     *reg = *ofs;
     *ofs = t;
-  } else if ((rc = off(sec, h, cell, reg, e))) goto done;
+  } else if ((rc = off(sec, h, cell, o->thin_box, reg, e))) goto done;
 done:
   free(hit); free(depth); free(box);
   gr_rings_free(sec); gr_rings_free(ofs);

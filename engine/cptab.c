@@ -1,6 +1,7 @@
 /* cptab.c: shared closest points, see cptab.h. */
 #include "cptab.h"
 #include <math.h>
+#include <string.h>
 #include <stdlib.h>
 #include "distance.h"
 #include "domain.h"
@@ -71,38 +72,53 @@ typedef struct near_ud {
 } near_ud;
 
 
-/* Value (and in-plane gradient when gx != NULL) at n points. */
+/* Value (and in-plane gradient when gx != NULL) at n points, from the
+ * closest points of the four nodes around each point (those on distinct
+ * patches of H: across the medial surface the nearer patch decides, and with
+ * it the thickness there). */
 static int near_eval(void *ud_, size_t n, const double *x, const double *y, double *out,
                      double *gx, double *gy, gr_err *e) {
   const near_ud *u = ud_;
-  enum { B = 256 };
-  double hint[3 * B], zb[B], g[3 * B];
+  enum { B = 256, NH = 4 };
+  double hint[3 * NH * B], zb[B], g[3 * B];
   for (size_t s = 0; s < n; s += B) {
     size_t m = n - s < B ? n - s : B;
     for (size_t i = 0; i < m; i++) {
       double fx = (x[s + i] - u->lo[0]) / u->h, fy = (y[s + i] - u->lo[1]) / u->h;
-      int a = (int)floor(fx), b = (int)floor(fy);
-      double best = INFINITY;
-      hint[3 * i] = hint[3 * i + 1] = hint[3 * i + 2] = NAN;
-      for (int c = 0; c < 4; c++) {
-        int ia = a + (c & 1), ib = b + (c >> 1);
+      int a = (int)floor(fx), b = (int)floor(fy), nh = 0, order[4] = {0, 1, 2, 3};
+      double d2[4], *hi = hint + 3 * NH * i;
+      for (int c = 0; c < 4; c++) d2[c] = (fx - a - (c & 1)) * (fx - a - (c & 1)) + (fy - b - (c >> 1)) * (fy - b - (c >> 1));
+      for (int c = 1; c < 4; c++) /* nearest node first */
+        for (int k = c; k > 0 && d2[order[k]] < d2[order[k - 1]]; k--) {
+          int t = order[k];
+          order[k] = order[k - 1];
+          order[k - 1] = t;
+        }
+      for (int r = 0; r < 4; r++) {
+        int c = order[r], ia = a + (c & 1), ib = b + (c >> 1);
         if (ia < 0 || ib < 0 || ia >= u->nx || ib >= u->ny) continue;
         const double *q = u->q + 3 * (ia + (size_t)u->nx * ib);
-        double d2 = (fx - ia) * (fx - ia) + (fy - ib) * (fy - ib);
-        if (!isnan(q[0]) && d2 < best) {
-          /* the node's closest point moved along the tangent plane there
-           * by the point's offset from the node */
-          double c[3] = {u->lo[0] + ia * u->h, u->lo[1] + ib * u->h, u->z};
-          double nv[3] = {c[0] - q[0], c[1] - q[1], c[2] - q[2]}, dp[3] = {x[s + i] - c[0], y[s + i] - c[1], 0};
-          double nn = sqrt(nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2]);
-          double dn = nn > 1e-9 ? (dp[0] * nv[0] + dp[1] * nv[1]) / (nn * nn) : 0;
-          best = d2;
-          for (int k = 0; k < 3; k++) hint[3 * i + k] = q[k] + dp[k] - dn * nv[k];
+        if (isnan(q[0])) continue;
+        /* the node's closest point moved along the tangent plane there
+         * by the point's offset from the node */
+        double c3[3] = {u->lo[0] + ia * u->h, u->lo[1] + ib * u->h, u->z};
+        double nv[3] = {c3[0] - q[0], c3[1] - q[1], c3[2] - q[2]}, dp[3] = {x[s + i] - c3[0], y[s + i] - c3[1], 0};
+        double nn = nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2];
+        double dn = nn > 1e-18 ? (dp[0] * nv[0] + dp[1] * nv[1]) / nn : 0, hk[3];
+        for (int k = 0; k < 3; k++) hk[k] = q[k] + dp[k] - dn * nv[k];
+        /* a hint within two grid cells of one already taken: the same patch */
+        int same = 0;
+        for (int k = 0; k < nh && !same; k++) {
+          const double *o = hi + 3 * k;
+          same = (o[0] - hk[0]) * (o[0] - hk[0]) + (o[1] - hk[1]) * (o[1] - hk[1]) + (o[2] - hk[2]) * (o[2] - hk[2]) <
+                 4 * u->h * u->h;
         }
+        if (!same) memcpy(hi + 3 * nh++, hk, sizeof hk);
       }
+      for (int k = nh; k < NH; k++) hi[3 * k] = hi[3 * k + 1] = hi[3 * k + 2] = NAN;
       zb[i] = u->z;
     }
-    int rc = gr_offset_eval_near(u->f, m, x + s, y + s, zb, hint, out + s, gx ? g : NULL, e);
+    int rc = gr_offset_eval_near(u->f, m, x + s, y + s, zb, hint, NH, out + s, gx ? g : NULL, e);
     if (rc) return rc;
     if (gx)
       for (size_t i = 0; i < m; i++) {

@@ -37,6 +37,7 @@ typedef struct offset {
   double tmax;        /* max T over H's vertices */
   double herr;        /* bound on the distance between H's mesh and phi = 0 */
   double reach;       /* below this distance a local closest point is the closest (mm) */
+  double mdev;        /* measured: how far H's mesh lies off phi = 0 (mm, exact mode) */
   gr_field *like;     /* the offset field whose H and BVH are shared, or NULL */
   gr_dtable *dens;    /* density -> T table, or NULL */
   double shift[3];    /* H = the shared mesh translated by this, mm */
@@ -284,21 +285,40 @@ static double dist3(const double p[3], const double q[3]) {
  * and taken when it is nearer. */
 #define PATCH_TOL 1e-4
 
+/* The nearer of q and c's candidate (a point of H's mesh, refined onto
+ * phi = 0); returns |p - q|. */
+static double take_nearer(const offset *f, const double p[3], double q[3], gr_hit *c) {
+  double d = dist3(p, q);
+  if (c->tri < 0 || !(exact_newton(f, p, c->q) || exact_refine(f, p, c->q))) return d;
+  double d2 = dist3(p, c->q);
+  if (d2 < d) {
+    memcpy(q, c->q, sizeof c->q);
+    return d2;
+  }
+  return d;
+}
+
 /* q: a local closest point of p on phi = 0. Searches H for anything nearer
  * than q by more than tol; the nearest part found, refined onto phi = 0,
- * replaces q when it is nearer. Returns the distance |p - q|. */
-static double nearest_patch(const offset *f, const double p[3], double q[3], double tol) {
+ * replaces q when it is nearer. With `away` (the strict check) another
+ * patch is also looked for where its mesh is up to twice
+ * the mesh's measured deviation (mdev) farther than q: the nearest point of
+ * the mesh away from q's own patch (which lies within sqrt((d + m)^2 - d^2)
+ * of q there), refined and taken when nearer. Near the medial surface two
+ * patches are within the mesh's error of each other, and the mesh alone
+ * would pick either. Returns the distance |p - q|. */
+static double nearest_patch(const offset *f, const double p[3], double q[3], double tol, int away) {
   double d = dist3(p, q);
   if (d < f->reach) return d; /* within the reach: no other patch can be nearer */
   gr_hit c;
   closest_h(f, p, d - tol, &c);
-  if (c.tri < 0 || !(exact_newton(f, p, c.q) || exact_refine(f, p, c.q))) return d;
-  double d2 = dist3(p, c.q);
-  if (d2 < d) {
-    memcpy(q, c.q, sizeof c.q);
-    return d2;
-  }
-  return d;
+  d = take_nearer(f, p, q, &c);
+  if (!away) return d;
+  double R = d + 2 * f->mdev, sp[3] = {p[0] - f->shift[0], p[1] - f->shift[1], p[2] - f->shift[2]};
+  double sq[3] = {q[0] - f->shift[0], q[1] - f->shift[1], q[2] - f->shift[2]};
+  gr_bvh_closest_away(f->bvh, sp, R, sq, sqrt(R * R - d * d) + 2 * f->mdev, &c);
+  for (int a = 0; a < 3 && c.tri >= 0; a++) c.q[a] += f->shift[a];
+  return take_nearer(f, p, q, &c);
 }
 
 /* The field's value from a closest point's signed distance sd (+ where
@@ -367,8 +387,8 @@ static int offset_eval(void *ud, size_t n, const double *x, const double *y, con
         double p[3] = {x[s + i], y[s + i], z[s + i]}, qq[3] = {qx[q], qy[q], qz[q]};
         __atomic_fetch_add(&f->nrefine, 1, __ATOMIC_RELAXED);
         exact_refine(f, p, qq);
+        dd[q] = nearest_patch(f, p, qq, PATCH_TOL, 1); /* the mesh may pick the farther of two patches */
         qx[q] = qq[0]; qy[q] = qq[1]; qz[q] = qq[2];
-        dd[q] = sqrt((p[0] - qq[0]) * (p[0] - qq[0]) + (p[1] - qq[1]) * (p[1] - qq[1]) + (p[2] - qq[2]) * (p[2] - qq[2]));
         rx[nr] = qq[0]; ry[nr] = qq[1]; rz[nr] = qq[2];
         rpx[nr] = p[0]; rpy[nr] = p[1]; rpz[nr] = p[2];
         ri[nr++] = q;
@@ -463,7 +483,7 @@ int gr_offset_closest(const gr_field *f_, size_t n, const double *x, const doubl
           (p[0] - pp[0]) * (p[0] - pp[0]) + (p[1] - pp[1]) * (p[1] - pp[1]) + (p[2] - pp[2]) * (p[2] - pp[2]) < 0.01 * f->L * f->L) {
         double qq[3] = {pq[0], pq[1], pq[2]};
         if (exact_newton(f, p, qq)) {
-          double d = nearest_patch(f, p, qq, f->herr);
+          double d = nearest_patch(f, p, qq, f->herr, 0);
           if (d <= dmax) {
             memcpy(qi, qq, sizeof qq);
             sd[s + i] = sg * d;
@@ -529,7 +549,7 @@ int gr_offset_values(const gr_field *f_, size_t n, const double *p, double *q, d
   for (size_t i = 0; i < n && !rc; i++) {
     double *qi = q + 3 * i;
     if (isnan(qi[0]) || !(fabs(out[i]) < 2 * f->herr)) continue;
-    double d = fabs(sd[i]), d2 = nearest_patch(f, p + 3 * i, qi, PATCH_TOL);
+    double d = fabs(sd[i]), d2 = nearest_patch(f, p + 3 * i, qi, PATCH_TOL, 1);
     if (d2 < d) {
       sd[i] = sd[i] < 0 ? -d2 : d2;
       rc = values_at(f, 1, NULL, qi, sd + i, out + i, e);
@@ -539,9 +559,10 @@ int gr_offset_values(const gr_field *f_, size_t n, const double *p, double *q, d
 }
 
 int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const double *y,
-                        const double *z, const double *hint, double *out, double *grad, gr_err *e) {
+                        const double *z, const double *hint, int nh, double *out, double *grad, gr_err *e) {
   const offset *f = gr_field_callback_data(f_, offset_eval);
   if (!f) return gr_fail(e, GR_EARG, "offset evaluation needs an offset field");
+  if (nh < 1) return gr_fail(e, GR_EARG, "offset evaluation needs at least one hint per point");
   enum { B = 256 };
   double q[3 * B], sd[B], ph[B], pb[3 * B];
   for (size_t s = 0; s < n; s += B) {
@@ -549,11 +570,25 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
     int rc = gr_field_eval(f->phi, m, x + s, y + s, z + s, ph, e);
     if (rc) return rc;
     for (size_t i = 0; i < m; i++) {
-      double p[3] = {x[s + i], y[s + i], z[s + i]}, *qi = q + 3 * i;
+      double p[3] = {x[s + i], y[s + i], z[s + i]}, *qi = q + 3 * i, d = INFINITY;
       memcpy(pb + 3 * i, p, sizeof p);
-      memcpy(qi, hint + 3 * (s + i), 3 * sizeof *qi);
-      if (f->mode == GR_DIST_EXACT && !isnan(qi[0]) && exact_newton(f, p, qi)) {
-        nearest_patch(f, p, qi, PATCH_TOL);
+      /* every hint refined on its own patch; the nearest answer wins (hints
+       * from nodes across the medial surface lie on different patches) */
+      for (int k = 0; k < nh && f->mode == GR_DIST_EXACT; k++) {
+        const double *hk = hint + 3 * ((s + i) * nh + k);
+        double qk[3] = {hk[0], hk[1], hk[2]};
+        if (isnan(qk[0]) || !exact_newton(f, p, qk)) continue;
+        double dk = dist3(p, qk);
+        if (dk < d) {
+          d = dk;
+          memcpy(qi, qk, sizeof qk);
+        }
+      }
+      if (d < INFINITY) {
+        /* the hints come from grid nodes whose own closest points were
+         * checked strictly near zero (gr_offset_values): across the medial
+         * surface they lie on both patches, so no search away from them */
+        d = nearest_patch(f, p, qi, PATCH_TOL, 0);
       } else {
         /* no usable hint: search the mesh */
         gr_hit h;
@@ -561,8 +596,8 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
         if (h.tri < 0) return gr_fail(e, GR_EGEOM, "no closest point of H to (%g, %g, %g)", p[0], p[1], p[2]);
         if (f->mode == GR_DIST_EXACT) exact_refine(f, p, h.q);
         memcpy(qi, h.q, sizeof h.q);
+        d = dist3(p, qi);
       }
-      double d = sqrt((p[0] - qi[0]) * (p[0] - qi[0]) + (p[1] - qi[1]) * (p[1] - qi[1]) + (p[2] - qi[2]) * (p[2] - qi[2]));
       sd[i] = ph[i] > 0 ? d : -d;
       if (grad) {
         /* the distance's gradient (T's own slope along H neglected) */
@@ -795,6 +830,36 @@ static double reach_estimate(const offset *f, const gr_offset_opts *o, size_t nv
   return used ? REACH_SAFETY * best : 0;
 }
 
+/* How far H's mesh lies off phi = 0: |phi| / |grad phi| at each triangle's
+ * centroid and edge midpoints (where a flat triangle strays farthest from
+ * the surface), the largest times 1.5, at most herr. */
+static double mesh_deviation(const offset *f) {
+  enum { B = 256 };
+  double x[B], y[B], z[B], v[B], gx[B], gy[B], gz[B], worst = 0;
+  const gr_mesh *m = f->h;
+  size_t n = 0;
+  gr_err e;
+  for (size_t t = 0; t <= m->nf; t++) {
+    if (n + 4 > B || (t == m->nf && n)) {
+      if (gr_field_eval_grad(f->phi, n, x, y, z, v, gx, gy, gz, &e)) return f->herr;
+      for (size_t k = 0; k < n; k++) {
+        double g = sqrt(gx[k] * gx[k] + gy[k] * gy[k] + gz[k] * gz[k]);
+        worst = g > 0 ? fmax(worst, fabs(v[k]) / g) : f->herr;
+      }
+      n = 0;
+    }
+    if (t == m->nf) break;
+    const double *a = m->v + 3 * m->f[3 * t], *b = m->v + 3 * m->f[3 * t + 1], *c = m->v + 3 * m->f[3 * t + 2];
+    const double w[4][3] = {{1. / 3, 1. / 3, 1. / 3}, {0.5, 0.5, 0}, {0, 0.5, 0.5}, {0.5, 0, 0.5}};
+    for (int k = 0; k < 4; k++, n++) {
+      x[n] = w[k][0] * a[0] + w[k][1] * b[0] + w[k][2] * c[0] + f->shift[0];
+      y[n] = w[k][0] * a[1] + w[k][1] * b[1] + w[k][2] * c[1] + f->shift[1];
+      z[n] = w[k][0] * a[2] + w[k][1] * b[2] + w[k][2] * c[2] + f->shift[2];
+    }
+  }
+  return fmin(1.5 * worst, f->herr);
+}
+
 gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   if (!o->surface) return gr_fail(e, GR_EARG, "bad option 'surface' (a field is needed)"), NULL;
   for (int a = 0; a < 3; a++)
@@ -838,6 +903,7 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   double hmesh = fmax(o->cell[0], fmax(o->cell[1], o->cell[2])) / o->res; /* the coarsest mesh spacing */
   f->herr = 0.5 * hmesh;
   f->reach = lk ? lk->reach : (o->mode == GR_DIST_EXACT ? reach_estimate(f, o, nv, vx, vy, vz) : 0);
+  f->mdev = lk ? lk->mdev : (o->mode == GR_DIST_EXACT ? mesh_deviation(f) : f->herr);
   free(buf);
   f->tmax = maxt;
   f->maxt = 1.2 * maxt + 2 * hmesh;

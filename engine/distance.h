@@ -84,14 +84,16 @@ int gr_offset_closest(const gr_field *f, size_t n, const double *x, const double
  * searched on H and replaces q and sd when found. */
 int gr_offset_values(const gr_field *f, size_t n, const double *p, double *q, double *sd,
                      double *out, gr_err *e);
-/* f at n points, each closest point found by refining a hint (3n, mm; a
- * closest point of a nearby point, e.g. a grid neighbour) instead of searching
- * the mesh; a NaN or non-converging hint falls back to the search. The
- * hint's patch of the surface is checked: where H comes nearer than the
- * refined answer (by more than 0.1 um), that part is refined and taken
- * when nearer (so a hint from across the medial surface does no harm).
+/* f at n points, each closest point found by refining hints (nh per point,
+ * 3 nh n values, mm; closest points of nearby points, e.g. the grid
+ * neighbours) instead of searching the mesh: each hint is refined on its own
+ * patch and the nearest answer taken; NaN or non-converging hints are
+ * skipped, and with none left the mesh is searched. The answer's patch is
+ * checked: where H comes nearer than it (by more than 0.1 um), that part is
+ * refined and taken when nearer (so hints from across the medial surface do
+ * no harm).
  * grad (3n, or NULL): the gradient of the distance part (NaN on H). */
 int gr_offset_eval_near(const gr_field *f, size_t n, const double *x, const double *y,
-                        const double *z, const double *hint, double *out, double *grad, gr_err *e);
+                        const double *z, const double *hint, int nh, double *out, double *grad, gr_err *e);
 
 #endif

@@ -43,8 +43,10 @@ enum gr_hatch_pattern {
   GR_ISLAND = 2    /* checkerboard islands, direction alternating 90 degrees */
 };
 
-/* Inward offset of a region (same contract as gr_offset_rings in slice.h). */
-typedef int (*gr_offset_fn)(const gr_rings *in, double b, double cell,
+/* Inward offset of a region (same contract as gr_offset_rings_opt in
+ * slice.h: box, x0 y0 x1 y1 or NULL, where the offset's parts narrower than
+ * its grid are looked for). */
+typedef int (*gr_offset_fn)(const gr_rings *in, double b, double cell, const double *box,
                             gr_rings *out, gr_err *e);
 
 typedef struct gr_hatch_opts {
@@ -110,8 +112,8 @@ int gr_hatch_region(const gr_rings *region, const gr_hatch_opts *o,
  * lines shifted inward by b. Exact for convex polygons (a regular N-gon
  * stays a regular N-gon); rings that collapse are dropped; no
  * self-intersection handling, so use gr_offset_rings for general shapes.
- * Same contract as gr_offset_fn (cell unused). */
-int gr_hatch_miter_offset(const gr_rings *in, double b, double cell,
+ * Same contract as gr_offset_fn (cell and box unused). */
+int gr_hatch_miter_offset(const gr_rings *in, double b, double cell, const double *box,
                           gr_rings *out, gr_err *e);
 
 /* Layer rotation: first + k*increment in [0, 360) degrees, k the GLOBAL

@@ -42,10 +42,13 @@ void gr_sha256_hex(const void *data, size_t n, char out[65]);
  * settle end on the surface (2026-11-25), 5 since sections look for parts of
  * the boundary narrower than the grid, chords follow cut-off tips towards
  * their neighbours' corner and in-plane distances take their sign by the
- * even-odd rule (2026-11-25). A template whose
+ * even-odd rule (2026-11-25), 6 since in-plane offsets find strips narrower
+ * than their grid (walls just over 2b wide) and sections evaluated through
+ * shared closest points take the nearest of the four nodes' patches
+ * (2026-11-25). A template whose
  * signature begins otherwise was built under an older rule: its key is never
  * asked for again, `gradus kb list` marks it stale and prune removes it. */
-#define GR_TEMPLATE_GEOMETRY "{gradus_template: 5, grading: voxel-owned,"
+#define GR_TEMPLATE_GEOMETRY "{gradus_template: 6, grading: voxel-owned,"
 /* 1 when a signature is a Gradus template's of an older engine geometry
  * (it begins with "{gradus_template: " but not with GR_TEMPLATE_GEOMETRY). */
 int gr_kb_stale(const char *signature);

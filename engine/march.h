@@ -28,6 +28,14 @@ typedef struct gr_ms_grid {
  * corner it cut off is looked for (four cells of the grid contoured). */
 typedef struct gr_ms_win { int on; double lo[2], hi[2], reach; } gr_ms_win;
 
+/* Parts of the zero set hidden between nodes of one sign (hidden.c): where
+ * probes of suspect edges find the other sign by more than 1 um, g is
+ * sampled again 2x finer near the zero set (up to twice); *g then describes
+ * the finer grid, whose values *owned holds (the caller frees it; NULL when
+ * g was not refined). lip > 0: a bound on fn's slope (1 for distances:
+ * fewer edges are suspect), 0: none. box (x0 y0 x1 y1, or NULL: all): only
+ * edges within a cell of it are probed. */
+int gr_ms_unhide(gr_ms_grid *g, double lip, const double *box, gr_slice_fn fn, void *ud, double **owned, gr_err *e);
 /* Evaluate fn at n points in chunks (keeps scratch buffers of callers small). */
 int gr_ms_eval(gr_slice_fn fn, void *ud, size_t n, const double *x, const double *y, double *out, gr_err *e);
 /* Contour {fn < 0} from the sampled grid: crossings on grid edges refined on

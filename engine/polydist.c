@@ -316,7 +316,7 @@ static int bbox_grid(const gr_rings *r, double cell, gr_ms_grid *g, gr_err *e) {
 }
 
 int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
-                        double chord_tol, gr_rings *out, gr_err *e) {
+                        double chord_tol, const double *box, gr_rings *out, gr_err *e) {
   if (!(b >= 0) || !isfinite(b)) return gr_fail(e, GR_EARG, "offset distance b must be >= 0, got %g", b);
   if (!(cell > 0) || !isfinite(cell)) return gr_fail(e, GR_EARG, "cell must be > 0, got %g", cell);
   if (!(tol > 0) || !isfinite(tol)) return gr_fail(e, GR_EARG, "tol must be > 0, got %g", tol);
@@ -344,8 +344,12 @@ int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
     if (!v) rc = gr_fail(e, GR_EMEM, "out of memory: offset grid %d x %d", g.nx, g.ny);
   }
   if (!rc) rc = pd_sample(&d, &g, v, rmax, e);
+  double *fine = NULL; /* the grid sampled again where a strip hides between nodes */
   if (!rc) {
     g.v = v;
+    rc = gr_ms_unhide(&g, 1, box, pd_fn, &d, &fine, e);
+  }
+  if (!rc) {
     gr_rings_clear(out);
     rc = gr_ms_contour(&g, pd_fn, pd_gfn, &d, 1, tol, out, e);
   }
@@ -354,6 +358,7 @@ int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
     rc = gr_ms_chord_refine(out, pd_fn, pd_gfn, &d, tol, chord_tol, &w, e);
   }
   if (!rc) rc = gr_rings_nest(out, e);
+  free(fine);
   free(v);
   pd_free(&d);
   gr_rings_free(src);
@@ -362,7 +367,7 @@ int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
 
 int gr_offset_rings(const gr_rings *in, double b, double cell, gr_rings *out,
                     gr_err *e) {
-  return gr_offset_rings_opt(in, b, cell, 1e-6, 0, out, e);
+  return gr_offset_rings_opt(in, b, cell, 1e-6, 0, NULL, out, e);
 }
 
 double gr_rings_max_inner_distance(const gr_rings *in, double cell, gr_err *e) {

@@ -56,14 +56,18 @@ int gr_slice_mesh(const gr_mesh *m, double z, gr_rings *closed,
 /* Inward in-plane offset of the region bounded by `in` by distance b >= 0
  * (mm): every point of the result lies at distance b from the boundary of
  * `in`, inside it. cell is the grid cell of the 2-D distance field (mm).
- * Components narrower than 2b vanish. `out` is cleared first. Crossings are
- * refined on the exact polygon distance to 1e-6 mm. */
+ * Components narrower than 2b vanish; parts of the offset narrower than the
+ * grid (walls just over 2b wide) are found and sampled finer. `out` is
+ * cleared first. Crossings are refined on the exact polygon distance to
+ * 1e-6 mm. */
 int gr_offset_rings(const gr_rings *in, double b, double cell, gr_rings *out,
                     gr_err *e);
-/* The same with the crossing tolerance tol (mm, > 0) and the chord option
- * chord_tol (mm, 0 = off) of gr_slice_opts. */
+/* The same with the crossing tolerance tol (mm, > 0), the chord option
+ * chord_tol (mm, 0 = off) of gr_slice_opts, and box (x0 y0 x1 y1, mm, or
+ * NULL: everywhere): parts narrower than the grid are looked for only
+ * there (a template's window beyond its voxel needs no such care). */
 int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
-                        double chord_tol, gr_rings *out, gr_err *e);
+                        double chord_tol, const double *box, gr_rings *out, gr_err *e);
 
 /* Largest in-plane distance from a point of the region to its boundary
  * (the inradius of the widest component), sampled on a grid of `cell` mm,

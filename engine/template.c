@@ -37,14 +37,14 @@ gr_tmpl *gr_tmpl_new(int ja, int jb) {
 /* Hatch regions are simplified to this (mm): hatch ends move by at most this. */
 #define REGION_TOL 1e-4
 
-static int offset_fine(const gr_rings *in, double b, double cell, gr_rings *out, gr_err *e) {
-  return gr_offset_rings_opt(in, b, cell, 1e-6, 0, out, e);
+static int offset_fine(const gr_rings *in, double b, double cell, const double *box, gr_rings *out, gr_err *e) {
+  return gr_offset_rings_opt(in, b, cell, 1e-6, 0, box, out, e);
 }
 
 /* The same with chords refined: a section with corners (a step at a face)
  * has offsets with arcs of radius b, too tight for chords of a grid cell. */
-static int offset_sharp(const gr_rings *in, double b, double cell, gr_rings *out, gr_err *e) {
-  return gr_offset_rings_opt(in, b, cell, 1e-6, CHORD_TOL, out, e);
+static int offset_sharp(const gr_rings *in, double b, double cell, const double *box, gr_rings *out, gr_err *e) {
+  return gr_offset_rings_opt(in, b, cell, 1e-6, CHORD_TOL, box, out, e);
 }
 
 

@@ -596,7 +596,7 @@ static double *iwp_samples(const gr_field *phi, const double c[3], double R, dou
 
 /* An iwp sheet of constant half-thickness T (2 mm cells) over the box
  * x 2..4, y y0..y0+2, z 0..2; *phi is its surface (both freed by the caller). */
-static gr_field *iwp_sheet(double y0, double T, gr_field **phi, gr_err *e) {
+static gr_field *iwp_sheet_expr(double y0, double T, const char *expr, gr_field **phi, gr_err *e) {
   *phi = gr_field_tpms("iwp", 2, NULL, 0, e);
   if (!*phi) return NULL;
   gr_offset_opts o = gr_offset_defaults();
@@ -607,7 +607,11 @@ static gr_field *iwp_sheet(double y0, double T, gr_field **phi, gr_err *e) {
   o.margin = 0.2;
   o.res = 40;
   o.thickness = T;
+  o.thickness_expr = expr;
   return gr_offset_field_new(&o, e);
+}
+static gr_field *iwp_sheet(double y0, double T, gr_field **phi, gr_err *e) {
+  return iwp_sheet_expr(y0, T, NULL, phi, e);
 }
 
 TEST(thick_sheet_nearest_patch) {
@@ -640,7 +644,7 @@ TEST(thick_sheet_nearest_patch) {
   }
   /* a hint from the mirror point's foot (the other patch) */
   for (int i = 0; i < N && S; i++) memcpy(hint + 3 * i, q + 3 * (N - 1 - i), 3 * sizeof *q);
-  if (S && !gr_offset_eval_near(g, N, x, y, z, hint, v, NULL, &e))
+  if (S && !gr_offset_eval_near(g, N, x, y, z, hint, 1, v, NULL, &e))
     for (int i = 0; i < N; i++) worst[2] = fmax(worst[2], fabs(v[i] + 0.28 - truth[i]));
   printf("  info: iwp T = 0.28 across y = 2: values off the sampled truth by %.3g / %.3g um (grid order up / down;"
          " closest points alone, tolerance 2 herr: %.3g um), %.3g um from the other patch's hints; truth %.5f .. %.5f mm\n",
@@ -683,6 +687,71 @@ TEST(direct_eval_on_surface) {
   gr_field_free(phi);
 }
 
+/* Hints from both sides of the medial surface (gr_offset_eval_near with
+ * several hints per point, as the templates' slicer passes the closest
+ * points of the four grid nodes around a point): each is refined on its own
+ * patch and the nearest answer decides, and with it the thickness there. An
+ * iwp sheet graded across its mirror plane y = 2 (T = 0.28 + 0.05 y: the two
+ * patches' feet lie ~0.4 mm apart in y, their T differ by ~20 um), points
+ * 0.02 um either side of the plane: their distances to the two patches
+ * differ by far less than the mesh's error, so the mesh cannot tell which
+ * is nearer. One hint, from the farther patch, gives that patch's value (the
+ * info line shows how far off: what the slicer got before, with the nearest
+ * node's hint only). A point evaluation must find the nearer patch by
+ * itself (the nearest point of the mesh away from the first answer's patch,
+ * within twice the mesh's measured error, refined). Truth:
+ * the patch on the point's own side of the plane is the nearer (mirror
+ * symmetry); the distance to its nearest sample of the zero set, T at that
+ * sample (5 um samples: T within 0.15 um). */
+TEST(near_hints_both_patches) {
+  gr_err e;
+  gr_field *phi = NULL, *g = iwp_sheet_expr(1, 0.28, "0.28 + 0.05*y", &phi, &e);
+  CHECK(g != NULL, "%s", e.msg);
+  double c[3] = {2.72, 2, 1.18}, hx[2] = {c[0], c[0]}, hy[2] = {1.98, 2.02}, hz[2] = {c[2], c[2]}, hq[6], hsd[2];
+  size_t ns = 0;
+  double *S = g ? iwp_samples(phi, c, 0.36, 0.005, &ns) : NULL;
+  CHECK(ns > 1000, "%zu surface samples", ns);
+  int ok = S && !gr_offset_closest(g, 2, hx, hy, hz, 1, hq, hsd, &e);
+  CHECK(ok, "%s", e.msg);
+  CHECK(ok && fabs(hq[1] - hq[4]) > 0.1, "the two hints on one patch (y %.4f, %.4f)", hq[1], hq[4]);
+  double worst = 0, one = 0, jump = 0, direct = 0;
+  for (int side = 0; side < 2 && ok; side++) {
+    double p[3] = {c[0], c[1] + (side ? 2e-5 : -2e-5), c[2]}, best = INFINITY, far = -INFINITY, ty = 0;
+    for (size_t k = 0; k < ns; k++) {
+      if ((S[3 * k + 1] > c[1]) != (side == 1)) continue;
+      double d = dist3(p, S + 3 * k);
+      if (d < best) best = d, ty = S[3 * k + 1];
+    }
+    double truth = best - (0.28 + 0.05 * ty);
+    for (int order = 0; order < 2; order++) {
+      double hint[6], v;
+      memcpy(hint, hq + 3 * order, 3 * sizeof *hq);
+      memcpy(hint + 3, hq + 3 * (1 - order), 3 * sizeof *hq);
+      if (gr_offset_eval_near(g, 1, &p[0], &p[1], &p[2], hint, 2, &v, NULL, &e)) { CHECK(0, "%s", e.msg); break; }
+      worst = fmax(worst, fabs(v - truth));
+      /* the farther patch's hint alone: no search away from it (the
+       * slicer's hints are the four nodes', on both patches here) */
+      if (gr_offset_eval_near(g, 1, &p[0], &p[1], &p[2], hint, 1, &v, NULL, &e)) { CHECK(0, "%s", e.msg); break; }
+      far = fmax(far, fabs(v - truth));
+    }
+    /* a point evaluation (no hint: the mesh's nearest, refined, checked) */
+    double v;
+    if (gr_field_eval(g, 1, &p[0], &p[1], &p[2], &v, &e)) { CHECK(0, "%s", e.msg); break; }
+    direct = fmax(direct, fabs(v - truth));
+    one = fmax(one, far);
+    jump = fmax(jump, 0.05 * fabs(hq[1] - hq[4]));
+  }
+  printf("  info: iwp graded across y = 2: values from both patches' hints off the sampled truth by %.3g um;"
+         " from the farther patch's hint alone %.3g um (the patches' T differ by %.3g um)\n", worst * 1e3, one * 1e3,
+         jump * 1e3);
+  CHECK(ok && worst < 3e-4, "off by %.3g um", worst * 1e3);
+  printf("  info: point evaluations there off by %.3g um\n", direct * 1e3);
+  CHECK(ok && direct < 3e-4, "point evaluation off by %.3g um", direct * 1e3);
+  free(S);
+  gr_field_free(g);
+  gr_field_free(phi);
+}
+
 int main(void) {
   RUN(triangle_vs_sampling);
   RUN(bvh_sphere);
@@ -695,5 +764,6 @@ int main(void) {
   RUN(voxel_owned_field);
   RUN(thick_sheet_nearest_patch);
   RUN(direct_eval_on_surface);
+  RUN(near_hints_both_patches);
   DONE();
 }

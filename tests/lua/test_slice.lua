@@ -156,6 +156,33 @@ t.test("a pore with two horns: the chord across a horn follows it", function()
   t.ok(worst < 1e-6, ("every pore point on its boundary (%.3g um off)"):format(worst * 1e3))
 end)
 
+-- The offset of a wall just over 2b wide is a strip narrower than the
+-- offset's grid: a rectangle 0.5 x 0.056 mm offset by b = 0.025 leaves the
+-- rectangle 0.45 x 0.006 mm between y = 0.125 and 0.131, which falls between
+-- two rows of nodes (0.1187 and 0.1373) on a 0.02 mm grid. The distance's
+-- ridge along the wall shows it (the rows' straight continuation crosses
+-- b); before, the offset was empty and the wall went unscanned (a graded
+-- frd sheet's first layer: 28 % of the section left as pores).
+t.test("offset of a wall just over 2b wide: the narrow strip is found", function()
+  local r = gradus.slice.field("max(abs(x-0.35)-0.25, abs(y-0.128)-0.028)", 0, { lo = { 0, 0 }, hi = { 0.8, 0.3 }, cell = 0.004 })
+  t.near(r:area(), 0.5 * 0.056, 1e-9, "the section is the rectangle")
+  local o = gradus.slice.offset(r, 0.025, { cell = 0.02 })
+  t.eq(o:count(), 1, "one strip")
+  -- its ends' corners are cut by chords of the finer grid (5 um)
+  t.near(o:area(), 0.45 * 0.006, 0.02 * 0.45 * 0.006, "area of the strip, within 2 %")
+  local worst = 0
+  for i = 1, o:count() do
+    local g = o:ring(i)
+    for q = 1, #g, 2 do
+      local x, y = g[q], g[q + 1]
+      local inside = x >= 0.125 - 1e-9 and x <= 0.575 + 1e-9 and y >= 0.125 - 1e-9 and y <= 0.131 + 1e-9
+      local d = math.min(math.abs(x - 0.125), math.abs(x - 0.575), math.abs(y - 0.125), math.abs(y - 0.131))
+      worst = math.max(worst, inside and d or math.huge)
+    end
+  end
+  t.ok(worst < 1e-6, ("every strip point on the offset rectangle (%.3g um off)"):format(worst * 1e3))
+end)
+
 t.test("eq. (7): a grid coarser than d/2 is refused", function()
   t.eq(gradus.slice.max_cell(0.05), 0.025, "d/2")
   t.raises(function() gradus.slice.field("x", 0, { lo = { 0, 0 }, hi = { 1, 1 }, hatch = 0.05, cell = 0.04 }) end, "eq. 7")
