@@ -126,7 +126,7 @@ TEST(repeated_corner_points) {
      * chords refined: every point at b from the section, an arc around the
      * corner (points within b + 1 um of it, none nearer) */
     gr_rings *o = gr_rings_new();
-    int rc = gr_offset_rings_opt(r, 0.025, 0.025, 1e-6, 2e-4, o, &e);
+    int rc = gr_offset_rings_opt(r, 0.025, 0.025, 1e-6, 2e-4, NULL, o, &e);
     CHECK(rc == 0, "%s", e.msg);
     double off = 0, nearest = INFINITY;
     for (size_t k = 0; k < o->npts; k++) {
@@ -182,7 +182,7 @@ TEST(crossing_rings_even_odd) {
     }
   CHECK(worst < 1e-12, "signed distance off the even-odd truth by %.3g mm", worst);
   gr_rings *o = gr_rings_new();
-  int rc = gr_offset_rings_opt(r, 0.1, 0.025, 1e-6, 2e-4, o, &e);
+  int rc = gr_offset_rings_opt(r, 0.1, 0.025, 1e-6, 2e-4, NULL, o, &e);
   CHECK(rc == 0, "%s", e.msg);
   double off = 0;
   for (size_t k = 0; k < o->npts; k++) off = fmax(off, fabs(crossed_dist(o->xy[2 * k], o->xy[2 * k + 1]) + 0.1));
