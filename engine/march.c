@@ -578,6 +578,11 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
         ins[seg[k]] = (int)++nins;
       }
     }
+    /* the section is known inside the window only: a root found beyond it
+     * (a curve bulging out between two border nodes) goes onto the border,
+     * so that no ring leaves the window and nesting (by boxes) holds */
+    for (size_t c = 0; c < nins && w->on; c++)
+      for (int a = 0; a < 2; a++) ipt[2 * c + a] = fmin(fmax(ipt[2 * c + a], w->lo[a]), w->hi[a]);
     if (nins) {
       ok2 = calloc(n + nins + 1, 1);
       if (!ok2) { rc = gr_fail(e, GR_EMEM, "out of memory refining chords"); goto pass_done; }

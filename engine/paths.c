@@ -133,7 +133,10 @@ int gr_rings_nest(gr_rings *r, gr_err *e) {
     for (size_t j = 0; j < n; j++) {
       if (j == i) continue;
       const double *b = box + 5 * j, *bi = box + 5 * i;
-      if (b[4] <= bi[4] || b[0] > bi[0] || b[1] > bi[1] || b[2] < bi[2] || b[3] < bi[3]) continue;
+      /* boxes compared to 1e-9 mm: a ring touching its parent's border
+       * segment may differ from it by rounding */
+      if (b[4] <= bi[4] || b[0] > bi[0] + 1e-9 || b[1] > bi[1] + 1e-9 || b[2] < bi[2] - 1e-9 || b[3] < bi[3] - 1e-9)
+        continue;
       if (best >= 0 && box[5 * best + 4] <= b[4]) continue;
       if (ring_contains(r, j, p[0], p[1])) best = (long)j;
     }

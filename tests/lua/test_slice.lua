@@ -183,6 +183,25 @@ t.test("offset of a wall just over 2b wide: the narrow strip is found", function
   t.ok(worst < 1e-6, ("every strip point on the offset rectangle (%.3g um off)"):format(worst * 1e3))
 end)
 
+-- A pore whose boundary bulges 0.3 um out of the window between two border
+-- nodes (a circle of radius 0.3 reaching y = 1.0003, nodes at y = 1 outside
+-- it): chord refinement found that tip beyond the window, the pore's ring
+-- stuck out of the window ring's box, nesting took the pore for an outer
+-- ring (solid), and the templates drew a thin-wall fallback line through it
+-- (a lidinoid sheet's layer 7: 7 % overmelt). Points beyond the window now go
+-- onto its border.
+t.test("a pore bulging out of the window between border nodes stays a hole", function()
+  local r = gradus.slice.field("0.3 - sqrt((x-0.55)^2 + (y-0.7003)^2)", 0,
+    { lo = { 0, 0 }, hi = { 1, 1 }, cell = 0.1, chord_tol = 1e-4 })
+  t.eq(r:count(), 2, "the window's ring and the pore")
+  -- chords within 0.1 um of the circle: the polygon's area within 1e-4 of the disk's
+  t.near(r:area(), 1 - math.pi * 0.09, 2e-4, "solid = window - pore (the pore is a hole)")
+  for i = 1, r:count() do
+    local g = r:ring(i)
+    for q = 1, #g, 2 do t.ok(g[q] >= 0 and g[q] <= 1 and g[q + 1] >= 0 and g[q + 1] <= 1, "every point inside the window") end
+  end
+end)
+
 t.test("eq. (7): a grid coarser than d/2 is refused", function()
   t.eq(gradus.slice.max_cell(0.05), 0.025, "d/2")
   t.raises(function() gradus.slice.field("x", 0, { lo = { 0, 0 }, hi = { 1, 1 }, hatch = 0.05, cell = 0.04 }) end, "eq. 7")
