@@ -7,9 +7,10 @@
 -- the shell's `times`: meaningful on a loaded machine where wall time is
 -- not), CPU per unique voxel-layer, peak RSS, the most templates held at
 -- once (streamed row by row of voxels) and the continuous/constant
--- CPU ratio. `-D sizes=3,4,6` adds the issue's 6 x 6 x 6 (about a minute
--- of CPU); `-D extra='-D kb_store=all'` passes options to every job.
-local sizes_s = gradus.param("sizes", "3,4", { help = "cube sizes n (cells per side), comma-separated" })
+-- CPU ratio, at three sizes (2, 3 and 4 cells a side). `-D sizes=2,3,4,6`
+-- adds the issue's 6 x 6 x 6 (about a minute of CPU);
+-- `-D extra='-D kb_store=all'` passes options to every job.
+local sizes_s = gradus.param("sizes", "2,3,4", { help = "cube sizes n (cells per side), comma-separated" })
 local extra = gradus.param("extra", "", { help = "more -D options for every job" })
 local exe = gradus.root .. "/build/gradus"
 local tmp = os.getenv("TMPDIR") or "/tmp"
