@@ -46,13 +46,6 @@ static int edge_suspect(double vp, double va, double vb, double vn, double h, do
   return fabs(va - vb) > HID_JUMP * h;
 }
 
-/* Is node (i, j) the first end of an edge worth a closer look (an end
- * within guard of zero)? */
-static int node_near(const gr_ms_grid *g, int i, int j, double guard) {
-  const double *v = g->v + i + (size_t)g->nx * j;
-  return fabs(v[0]) <= guard || (i + 1 < g->nx && fabs(v[1]) <= guard) || (j + 1 < g->ny && fabs(v[g->nx]) <= guard);
-}
-
 /* *hidden = 1 if a probe between two nodes of one sign has the other sign. */
 static int hidden_boundary(const gr_ms_grid *g, double lip, const double *box, gr_slice_fn fn, void *ud, int *hidden,
                            gr_err *e) {
@@ -66,7 +59,6 @@ static int hidden_boundary(const gr_ms_grid *g, double lip, const double *box, g
   *hidden = 0;
   for (int j = 0; j < g->ny && !rc; j++)
     for (int i = 0; i < g->nx && !rc; i++) {
-      if (!node_near(g, i, j, guard)) continue;
       if (box) {
         double x = g->x0 + i * g->hx, y = g->y0 + j * g->hy;
         if (x < box[0] - 2 * g->hx || x > box[2] + g->hx || y < box[1] - 2 * g->hy || y > box[3] + g->hy) continue;
