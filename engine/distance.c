@@ -224,14 +224,15 @@ static int solve4(double A[4][4], double b[4]) {
  * near the answer (a neighbour's closest point); returns 0 (q unchanged)
  * when it does not converge, so the caller can fall back. */
 static int exact_newton(const offset *f, const double p[3], double q[3]) {
-  double x[3] = {q[0], q[1], q[2]}, lam = 0, step = 1e-6 * f->L;
+  double x[3] = {q[0], q[1], q[2]}, lam = 0, step = 1e-6 * f->L, prev = INFINITY;
   gr_err e;
-  double gs[3][3];
+  double gs[3][3], dp[3] = {0, 0, 0};
+  gr_field_at at;
   for (int it = 0; it < 20; it++) {
     double v, g[3];
-    /* the Hessian once: the start is near, so it barely changes */
-    if (it == 0 ? gr_field_hess_fd(f->phi, x, step, &v, g, gs, &e)
-                : gr_field_eval_grad(f->phi, 1, &x[0], &x[1], &x[2], &v, &g[0], &g[1], &g[2], &e))
+    /* the Hessian once: the start is near, so it barely changes; the
+     * steps after it move the start's sines and cosines */
+    if (it == 0 ? gr_field_hess_fd_at(f->phi, x, step, &v, g, gs, &at, &e) : gr_field_move_grad(f->phi, &at, dp, &v, g, &e))
       return 0;
     double g2 = gr_dot3(g, g);
     if (!(g2 > 1e-300)) return 0;
@@ -246,14 +247,18 @@ static int exact_newton(const offset *f, const double p[3], double q[3]) {
     A[3][3] = 0;
     b[3] = -v;
     if (!solve4(A, b)) return 0;
-    for (int a = 0; a < 3; a++) x[a] += b[a];
+    for (int a = 0; a < 3; a++) x[a] += dp[a] = b[a];
     lam += b[3];
     double dx = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
     if (!isfinite(dx)) return 0;
     /* the Hessian is frozen at the start, so convergence is linear with a
-     * tiny rate (the start is within a grid cell): the error left after a
-     * step of 1e-6 L is below 1e-9 L */
-    if (dx < 1e-6 * f->L) {
+     * tiny rate rho (the start is within a grid cell): the error left after
+     * a step dx is about rho dx, rho measured as the ratio of the last two
+     * steps. Done when that is below 1e-7 L (or the step itself below
+     * 1e-6 L, as before: then the error left is below 1e-9 L) */
+    double rho = dx / prev;
+    prev = dx;
+    if (dx < 1e-6 * f->L || (it > 0 && rho < 0.1 && rho * dx < 1e-7 * f->L * (1 - rho))) {
       double dq = sqrt((x[0] - q[0]) * (x[0] - q[0]) + (x[1] - q[1]) * (x[1] - q[1]) + (x[2] - q[2]) * (x[2] - q[2]));
       if (!(dq < 0.25 * f->L)) return 0;
       memcpy(q, x, sizeof x);
@@ -567,7 +572,12 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
   double q[3 * B], sd[B], ph[B], pb[3 * B];
   for (size_t s = 0; s < n; s += B) {
     size_t m = n - s < B ? n - s : B;
-    int rc = gr_field_eval(f->phi, m, x + s, y + s, z + s, ph, e);
+    /* the side of H: a sheet of one thickness does not depend on it */
+    int rc = GR_OK;
+    if (f->kind == GR_OFFSET_SHEET && !f->tin)
+      for (size_t i = 0; i < m; i++) ph[i] = 1;
+    else
+      rc = gr_field_eval(f->phi, m, x + s, y + s, z + s, ph, e);
     if (rc) return rc;
     for (size_t i = 0; i < m; i++) {
       double p[3] = {x[s + i], y[s + i], z[s + i]}, *qi = q + 3 * i, d = INFINITY;

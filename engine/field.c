@@ -634,7 +634,44 @@ static void small_sincos(double d, double *s, double *c) {
 
 int gr_field_hess_fd(const gr_field *f, const double p[3], double h, double *v, double g[3], double hs[3][3],
                      gr_err *e) {
+  gr_field_at at;
+  return gr_field_hess_fd_at(f, p, h, v, g, hs, &at, e);
+}
+
+/* sin and cos of a step's phase d (|d| < 0.1: Taylor terms to d^11 and
+ * d^12, the rest below 1e-21; else libm's). */
+static void step_sincos(double d, double *s, double *c) {
+  if (!(fabs(d) < 0.1)) { *s = sin(d); *c = cos(d); return; }
+  double d2 = d * d;
+  *s = d * (1 - d2 / 6 * (1 - d2 / 20 * (1 - d2 / 42 * (1 - d2 / 72 * (1 - d2 / 110)))));
+  *c = 1 - d2 / 2 * (1 - d2 / 12 * (1 - d2 / 30 * (1 - d2 / 56 * (1 - d2 / 90 * (1 - d2 / 132)))));
+}
+
+int gr_field_move_grad(const gr_field *f, gr_field_at *at, const double dp[3], double *v, double g[3], gr_err *e) {
   if (!f) return gr_fail(e, GR_EARG, "field is missing (NULL)");
+  for (int a = 0; a < 3; a++) at->p[a] += dp[a];
+  if (!at->trig) return gr_field_eval_grad(f, 1, &at->p[0], &at->p[1], &at->p[2], v, &g[0], &g[1], &g[2], e);
+  const double *w = f->w;
+  double gl[3];
+  for (int a = 0; a < 3; a++) {
+    double sd, cd, s0 = at->sn[a], c0 = at->cs[a];
+    step_sincos(w[a] * dp[a], &sd, &cd);
+    at->sn[a] = s0 * cd + c0 * sd;
+    at->cs[a] = c0 * cd - s0 * sd;
+  }
+  *v = tpms_trig(f->surface, at->sn[0], at->cs[0], at->sn[1], at->cs[1], at->sn[2], at->cs[2], gl) - f->level;
+  for (int c = 0; c < 3; c++) g[c] = w[c] * gl[c];
+  if (!isfinite(*v) || first_bad(3, g, NULL, NULL) >= 0)
+    return gr_fail(e, GR_ENUM, "field %s or its gradient is not finite at x=%.6g, y=%.6g, z=%.6g", f->desc, at->p[0],
+                   at->p[1], at->p[2]);
+  return GR_OK;
+}
+
+int gr_field_hess_fd_at(const gr_field *f, const double p[3], double h, double *v, double g[3], double hs[3][3],
+                        gr_field_at *at, gr_err *e) {
+  if (!f) return gr_fail(e, GR_EARG, "field is missing (NULL)");
+  memcpy(at->p, p, sizeof at->p);
+  at->trig = 0;
   if (!(h > 0) || !isfinite(h)) return gr_fail(e, GR_EARG, "Hessian step must be > 0, got %g", h);
   if (f->kind != K_TPMS) {
     int rc = gr_field_eval_grad(f, 1, &p[0], &p[1], &p[2], v, &g[0], &g[1], &g[2], e);
@@ -650,9 +687,10 @@ int gr_field_hess_fd(const gr_field *f, const double p[3], double h, double *v, 
   double X[3], sn[3], cs[3], gl[3];
   for (int a = 0; a < 3; a++) {
     X[a] = w[a] * (p[a] - (f->origin[a] + f->cell[a] / 2));
-    sn[a] = sin(X[a]);
-    cs[a] = cos(X[a]);
+    sn[a] = at->sn[a] = sin(X[a]);
+    cs[a] = at->cs[a] = cos(X[a]);
   }
+  at->trig = 1;
   *v = tpms_trig(f->surface, sn[0], cs[0], sn[1], cs[1], sn[2], cs[2], gl) - f->level;
   for (int c = 0; c < 3; c++) g[c] = w[c] * gl[c];
   for (int a = 0; a < 3; a++) {

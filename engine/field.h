@@ -98,6 +98,20 @@ int gr_field_eval_grad(const gr_field *f, size_t n, const double *x, const doubl
  * Errors as gr_field_eval_grad. */
 int gr_field_hess_fd(const gr_field *f, const double p[3], double h, double *v, double g[3], double hs[3][3],
                      gr_err *e);
+/* A point followed through small moves (closest-point Newton steps): a TPMS
+ * keeps the sines and cosines of its phases and moves them by the
+ * angle-addition rule instead of calling sin and cos again. */
+typedef struct gr_field_at {
+  double p[3];         /* the point, mm */
+  double sn[3], cs[3]; /* sines and cosines of its phases (trig = 1) */
+  int trig;            /* 1: a plain TPMS whose sn, cs are valid */
+} gr_field_at;
+/* gr_field_hess_fd at p, remembering p in *at. */
+int gr_field_hess_fd_at(const gr_field *f, const double p[3], double h, double *v, double g[3], double hs[3][3],
+                        gr_field_at *at, gr_err *e);
+/* Move *at by dp (mm) and give the value and gradient there (as
+ * gr_field_eval_grad at at->p + dp, to rounding). */
+int gr_field_move_grad(const gr_field *f, gr_field_at *at, const double dp[3], double *v, double g[3], gr_err *e);
 
 /* ---- sampling ---- */
 /* Samples v[i + nx*(j + ny*k)] at (x0 + i*hx, y0 + j*hy, z0 + k*hz). */

@@ -34,13 +34,16 @@ static double grid_at(const gr_ms_grid *g, int i, int j) {
   return i < 0 || j < 0 || i >= g->nx || j >= g->ny ? NAN : g->v[i + (size_t)g->nx * j];
 }
 
-/* Does the edge from node a (value va, the node before it vp) to b (vb,
- * the node after it vn), h long, need probing? lip > 0: f's slope is at
- * most lip (a distance: 1), so f can reach zero between the nodes only if
- * |va| + |vb| <= lip h. */
-static int edge_suspect(double vp, double va, double vb, double vn, double h, double guard, double lip) {
+/* Does the grid edge from node a = (i, j) to b = a + (di, dj) need probing?
+ * Its values va, vb; the nodes before a and after b (vp, vn) are read only
+ * when va, vb pass the first tests (most edges do not). lip > 0: f's slope
+ * is at most lip (a distance: 1), so f can reach zero between the nodes only
+ * if |va| + |vb| <= lip h. */
+static int edge_suspect(const gr_ms_grid *g, int i, int j, int di, int dj, double guard, double lip) {
+  double va = g->v[i + (size_t)g->nx * j], vb = g->v[i + di + (size_t)g->nx * (j + dj)], h = dj ? g->hy : g->hx;
   if ((va < 0) != (vb < 0) || !(fmin(fabs(va), fabs(vb)) <= guard)) return 0;
   if (lip > 0 && fabs(va) + fabs(vb) > lip * h) return 0;
+  double vp = grid_at(g, i - di, j - dj), vn = grid_at(g, i + 2 * di, j + 2 * dj);
   double s = va < 0 ? 1 : -1; /* s * f rises towards zero */
   if (s * (2 * va - vp) >= 0 || s * (2 * vb - vn) >= 0) return 1; /* NaN compares false */
   return fabs(va - vb) > HID_JUMP * h;
@@ -66,10 +69,7 @@ static int hidden_boundary(const gr_ms_grid *g, double lip, const double *box, g
       for (int dir = 0; dir < 2; dir++) {
         int di = dir == 0, dj = dir == 1;
         if (i + di >= g->nx || j + dj >= g->ny) continue;
-        double va = grid_at(g, i, j), vb = grid_at(g, i + di, j + dj);
-        if (!edge_suspect(grid_at(g, i - di, j - dj), va, vb, grid_at(g, i + 2 * di, j + 2 * dj), dir ? g->hy : g->hx,
-                          guard, lip))
-          continue;
+        if (!edge_suspect(g, i, j, di, dj, guard, lip)) continue;
         size_t c1 = cape, c2 = cap, c3 = cap, c4 = cap;
         if (gr_grow(&sign, &c1, ne + 1, sizeof *sign) || gr_grow(&px, &c2, n + S, sizeof *px) ||
             gr_grow(&py, &c3, n + S, sizeof *py) || gr_grow(&pv, &c4, n + S, sizeof *pv)) {
@@ -78,7 +78,7 @@ static int hidden_boundary(const gr_ms_grid *g, double lip, const double *box, g
         }
         cape = c1;
         cap = c2;
-        sign[ne++] = va < 0;
+        sign[ne++] = g->v[i + (size_t)g->nx * j] < 0;
         for (int a = 1; a < S; a++) {
           px[n] = g->x0 + (i + di * (double)a / S) * g->hx;
           py[n++] = g->y0 + (j + dj * (double)a / S) * g->hy;

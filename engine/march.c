@@ -160,22 +160,28 @@ int gr_ms_contour(const gr_ms_grid *g, gr_slice_fn fn, gr_slice_grad_fn gfn, voi
   size_t nedge = 2 * (size_t)NX * NY;
   int rc = GR_OK;
   int *cross = malloc(nedge * sizeof *cross);
+  unsigned char *in = malloc((size_t)NX * NY); /* padded node (I, J) inside: in[I + NX J] */
   double *P = NULL, *Q = NULL, *fp = NULL, *fq = NULL, *pt = NULL;
   int *next = NULL, *sad = NULL;
   double *cx = NULL, *cy = NULL, *cv = NULL, *ring = NULL;
   size_t ncr = 0, capcr = 0, nsad = 0, capsad = 0;
-  if (!cross) return gr_fail(e, GR_EMEM, "out of memory: marching squares on %dx%d nodes", g->nx, g->ny);
+  if (!cross || !in) {
+    free(cross);
+    free(in);
+    return gr_fail(e, GR_EMEM, "out of memory: marching squares on %dx%d nodes", g->nx, g->ny);
+  }
+  for (int J = 0; J < NY; J++)
+    for (int I = 0; I < NX; I++) in[I + (size_t)NX * J] = node_v(g, I, J) < 0;
+#define IN(I, J) in[(I) + (size_t)NX * (J)]
   /* 1. crossing edges: H(I,J) = (I,J)-(I+1,J) id 2*(I+NX*J); V(I,J) = (I,J)-(I,J+1) id +1 */
   for (int J = 0; J < NY; J++)
     for (int I = 0; I < NX; I++) {
-      double v0 = node_v(g, I, J);
       for (int dir = 0; dir < 2; dir++) {
         size_t id = 2 * ((size_t)I + (size_t)NX * J) + dir;
         cross[id] = -1;
         int I1 = I + (dir == 0), J1 = J + (dir == 1);
-        if (I1 >= NX || J1 >= NY) continue;
-        double v1 = node_v(g, I1, J1);
-        if ((v0 < 0) == (v1 < 0)) continue;
+        if (I1 >= NX || J1 >= NY || IN(I, J) == IN(I1, J1)) continue;
+        double v0 = node_v(g, I, J), v1 = node_v(g, I1, J1);
         if (ncr + 1 > capcr) {
           size_t c = capcr;
           if (gr_grow(&P, &c, ncr + 1, 2 * sizeof(double)) || (c = capcr, gr_grow(&Q, &c, ncr + 1, 2 * sizeof(double))) ||
@@ -204,8 +210,7 @@ int gr_ms_contour(const gr_ms_grid *g, gr_slice_fn fn, gr_slice_grad_fn gfn, voi
   /* 2. saddle cells: centre value on the true function */
   for (int J = 0; J + 1 < NY; J++)
     for (int I = 0; I + 1 < NX; I++) {
-      int a = node_v(g, I, J) < 0, b = node_v(g, I + 1, J) < 0;
-      int c = node_v(g, I + 1, J + 1) < 0, d = node_v(g, I, J + 1) < 0;
+      int a = IN(I, J), b = IN(I + 1, J), c = IN(I + 1, J + 1), d = IN(I, J + 1);
       if (!((a && c && !b && !d) || (b && d && !a && !c))) continue;
       if (nsad + 1 > capsad) {
         size_t cc = capsad;
@@ -232,8 +237,7 @@ int gr_ms_contour(const gr_ms_grid *g, gr_slice_fn fn, gr_slice_grad_fn gfn, voi
   size_t s = 0;
   for (int J = 0; J + 1 < NY; J++)
     for (int I = 0; I + 1 < NX; I++) {
-      int ins[4] = {node_v(g, I, J) < 0, node_v(g, I + 1, J) < 0,
-                    node_v(g, I + 1, J + 1) < 0, node_v(g, I, J + 1) < 0};
+      int ins[4] = {IN(I, J), IN(I + 1, J), IN(I + 1, J + 1), IN(I, J + 1)};
       int m = ins[0] | ins[1] << 1 | ins[2] << 2 | ins[3] << 3;
       if (m == 0 || m == 15) continue;
       size_t ids[4] = {2 * ((size_t)I + (size_t)NX * J), 2 * ((size_t)I + 1 + (size_t)NX * J) + 1,
@@ -273,8 +277,9 @@ int gr_ms_contour(const gr_ms_grid *g, gr_slice_fn fn, gr_slice_grad_fn gfn, voi
     rc = gr_ms_emit_ring(out, ring, n);
     if (rc) { rc = gr_fail(e, GR_EMEM, "out of memory storing rings"); goto done; }
   }
+#undef IN
 done:
-  free(cross); free(P); free(Q); free(fp); free(fq); free(pt); free(next);
+  free(cross); free(in); free(P); free(Q); free(fp); free(fq); free(pt); free(next);
   free(sad); free(cx); free(cy); free(cv); free(ring);
   return rc;
 }

@@ -337,7 +337,7 @@ int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
   rc = bbox_grid(src, cell, &g, e);
   if (rc) { gr_rings_free(src); return rc; }
   double rmax = b + 2 * fmax(g.hx, g.hy);
-  rc = pd_build(&d, src, rmax, e);
+  rc = pd_build(&d, src, fmax(g.hx, g.hy), e);
   d.b = b;
   if (!rc) {
     v = malloc((size_t)g.nx * g.ny * sizeof *v);

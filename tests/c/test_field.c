@@ -531,6 +531,45 @@ TEST(hessian) {
   gr_field_free(ex);
 }
 
+/* gr_field_move_grad: a point followed through a chain of moves (small ones
+ * by the angle-addition rule, a large one by libm) gives the value and
+ * gradient that gr_field_eval_grad gives at the point reached, for every
+ * catalogue surface (stretched cell, shifted level) and for an expression. */
+TEST(moved_points) {
+  srand(12);
+  gr_err e = {0};
+  double L[3] = {1.7, 2.4, 3.1}, o[3] = {0.3, -0.2, 1.1};
+  const char *names[] = {"primitive", "gyroid", "diamond", "iwp", "neovius", "frd", "fischer_koch_s", "lidinoid",
+                         "split_p", "octo"};
+  int bad = 0, tried = 0;
+  double worst = 0;
+  for (int s = 0; s <= 10; s++) {
+    gr_field *f = s < 10 ? gr_field_tpms3(names[s], L, o, 0.1, &e) : gr_field_expr("x*x*y + z*y - 2*z*z*z", &e);
+    CHECK(f != NULL, "%s", e.msg);
+    if (!f) continue;
+    for (int k = 0; k < 50; k++) {
+      double p[3] = {rnd(-4, 4), rnd(-4, 4), rnd(-4, 4)}, v, g[3], hs[3][3];
+      gr_field_at at;
+      if (gr_field_hess_fd_at(f, p, 1e-6, &v, g, hs, &at, &e)) { bad++; continue; }
+      /* steps from 1e-9 mm to 0.2 mm: both sides of the 0.1-radian switch */
+      const double sizes[5] = {1e-9, 1e-5, 3e-3, 0.02, 0.2};
+      for (int m = 0; m < 5; m++) {
+        double dp[3] = {rnd(-1, 1) * sizes[m], rnd(-1, 1) * sizes[m], rnd(-1, 1) * sizes[m]}, gm[3], gw[3], vm, vw;
+        for (int a = 0; a < 3; a++) p[a] += dp[a];
+        tried++;
+        if (gr_field_move_grad(f, &at, dp, &vm, gm, &e) ||
+            gr_field_eval_grad(f, 1, &p[0], &p[1], &p[2], &vw, &gw[0], &gw[1], &gw[2], &e)) { bad++; continue; }
+        double err = fabs(vm - vw);
+        for (int a = 0; a < 3; a++) err = fmax(err, fabs(gm[a] - gw[a]) + fabs(at.p[a] - p[a]));
+        worst = fmax(worst, err);
+        if (err > 1e-11) bad++;
+      }
+    }
+    gr_field_free(f);
+  }
+  CHECK(bad == 0, "%d of %d moved points differ from gr_field_eval_grad by > 1e-11 (worst %.3g)", bad, tried, worst);
+}
+
 int main(void) {
   RUN(catalogue_names);
   RUN(primitive_known_points);
@@ -543,5 +582,6 @@ int main(void) {
   RUN(grid_sampling);
   RUN(concurrent_evaluation);
   RUN(hessian);
+  RUN(moved_points);
   DONE();
 }
