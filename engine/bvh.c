@@ -6,6 +6,7 @@
 
 typedef struct bnode {
   double lo[3], hi[3];
+  double nrm[3], slo, shi; /* slab: its triangles lie within slo <= nrm . x <= shi */
   int left;   /* child index, or -1 for a leaf */
   int right;
   int first, count; /* leaf: triangles tri[first .. first+count) */
@@ -16,9 +17,23 @@ struct gr_bvh {
   bnode *node;
   int nnode;
   uint32_t *tri;   /* triangle order */
-  double *cen;     /* centroids 3*nf */
+  double *cen;     /* centroids 3*nf (while building) */
   double *box;     /* triangle boxes 6*nf: lo[3], hi[3] (while building) */
+  double *pl;      /* triangle planes 4*nf: unit normal, offset (0s when degenerate) */
 };
+
+/* Triangle t's plane: unit normal n and offset n . a (all 0 for a triangle
+ * without area: its plane distance then bounds nothing). */
+static void tri_plane(const gr_mesh *m, uint32_t t, double *pl) {
+  const double *a = m->v + 3 * m->f[3 * t], *b = m->v + 3 * m->f[3 * t + 1], *c = m->v + 3 * m->f[3 * t + 2];
+  double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+  double n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+  double l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  for (int k = 0; k < 4; k++) pl[k] = 0;
+  if (!(l > 0)) return;
+  for (int k = 0; k < 3; k++) pl[k] = n[k] / l;
+  pl[3] = pl[0] * a[0] + pl[1] * a[1] + pl[2] * a[2];
+}
 
 
 static void tri_box(const gr_mesh *m, uint32_t t, double *box) {
@@ -27,6 +42,36 @@ static void tri_box(const gr_mesh *m, uint32_t t, double *box) {
     const double *v = m->v + 3 * m->f[3 * t + k];
     for (int a = 0; a < 3; a++) { box[a] = gr_lo(box[a], v[a]); box[3 + a] = gr_hi(box[3 + a], v[a]); }
   }
+}
+
+#define SLAB_MAX 64 /* triangles: larger nodes get no slab */
+
+/* The slab of node n (triangles tri[first .. first+count)): along the mean
+ * of their unit normals, the range of their vertices; near a smooth surface a
+ * small node's slab is thin, so a point beside the surface is seen to be
+ * far from it even where the node's box is near. Without a mean direction
+ * (normals cancelling) the slab is unbounded. */
+static void node_slab(gr_bvh *b, bnode *n, int first, int count) {
+  n->slo = -INFINITY;
+  n->shi = INFINITY;
+  for (int a = 0; a < 3; a++) n->nrm[a] = 0;
+  if (count > SLAB_MAX) return; /* so large that its surface has turned (and building stays quick) */
+  double s[3] = {0, 0, 0};
+  for (int i = first; i < first + count; i++)
+    for (int a = 0; a < 3; a++) s[a] += b->pl[4 * (size_t)b->tri[i] + a];
+  double l = sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+  if (!(l > 0.5 * count)) return; /* normals spread over more than 60 degrees on average */
+  for (int a = 0; a < 3; a++) n->nrm[a] = s[a] / l;
+  n->slo = INFINITY;
+  n->shi = -INFINITY;
+  const gr_mesh *m = b->m;
+  for (int i = first; i < first + count; i++)
+    for (int k = 0; k < 3; k++) {
+      const double *v = m->v + 3 * m->f[3 * (size_t)b->tri[i] + k];
+      double d = n->nrm[0] * v[0] + n->nrm[1] * v[1] + n->nrm[2] * v[2];
+      n->slo = gr_lo(n->slo, d);
+      n->shi = gr_hi(n->shi, d);
+    }
 }
 
 static int build(gr_bvh *b, int first, int count) {
@@ -44,6 +89,7 @@ static int build(gr_bvh *b, int first, int count) {
       chi[a] = gr_hi(chi[a], c);
     }
   }
+  node_slab(b, n, first, count);
   if (count <= 4) {
     n->left = n->right = -1;
     n->first = first;
@@ -82,16 +128,22 @@ gr_bvh *gr_bvh_new(const gr_mesh *m, gr_err *e) {
   b->tri = malloc(m->nf * sizeof *b->tri);
   b->cen = malloc(3 * m->nf * sizeof *b->cen);
   b->box = malloc(6 * m->nf * sizeof *b->box);
-  if (!b->node || !b->tri || !b->cen || !b->box) { gr_bvh_free(b); return gr_fail(e, GR_EMEM, "out of memory for BVH"), NULL; }
+  b->pl = malloc(4 * m->nf * sizeof *b->pl);
+  if (!b->node || !b->tri || !b->cen || !b->box || !b->pl) { gr_bvh_free(b); return gr_fail(e, GR_EMEM, "out of memory for BVH"), NULL; }
   for (size_t t = 0; t < m->nf; t++) {
     b->tri[t] = (uint32_t)t;
     tri_box(m, (uint32_t)t, b->box + 6 * t);
+    tri_plane(m, (uint32_t)t, b->pl + 4 * t);
     for (int a = 0; a < 3; a++)
       b->cen[3 * t + a] = (m->v[3 * m->f[3 * t] + a] + m->v[3 * m->f[3 * t + 1] + a] + m->v[3 * m->f[3 * t + 2] + a]) / 3;
   }
   build(b, 0, (int)m->nf);
+  /* what only building needs goes; the nodes shrink to those made */
   free(b->box);
-  b->box = NULL;
+  free(b->cen);
+  b->box = b->cen = NULL;
+  bnode *nodes = realloc(b->node, (size_t)b->nnode * sizeof *b->node);
+  if (nodes) b->node = nodes;
   return b;
 }
 
@@ -101,6 +153,7 @@ void gr_bvh_free(gr_bvh *b) {
   free(b->tri);
   free(b->cen);
   free(b->box);
+  free(b->pl);
   free(b);
 }
 
@@ -153,6 +206,14 @@ static double box_d2(const bnode *n, const double p[3]) {
   return s;
 }
 
+/* Squared distance from p to n's slab (a lower bound, as box_d2 is; less
+ * rounding: 1e-9 relative is taken off). */
+static double slab_d2(const bnode *n, const double p[3]) {
+  double d = n->nrm[0] * p[0] + n->nrm[1] * p[1] + n->nrm[2] * p[2];
+  double g = d < n->slo ? n->slo - d : (d > n->shi ? d - n->shi : 0);
+  return g * g * (1 - 1e-9);
+}
+
 /* Largest squared distance from c to a point of n's box. */
 static double box_far2(const bnode *n, const double c[3]) {
   double s = 0;
@@ -169,15 +230,26 @@ static void closest(const gr_bvh *b, const double p[3], double maxdist, const do
   double best = isfinite(maxdist) ? maxdist * maxdist : INFINITY, r2 = r * r;
   h->tri = -1;
   h->dist = INFINITY;
+  /* nodes to visit with a lower bound of their squared distance from p (box
+   * and slab, computed when pushed; checked again when popped, best may
+   * have shrunk) */
   int stack[128], sp = 0;
-  stack[sp++] = 0;
+  double sd2[128];
+  stack[sp] = 0;
+  sd2[sp++] = box_d2(&b->node[0], p);
   const gr_mesh *m = b->m;
   while (sp) {
-    const bnode *n = &b->node[stack[--sp]];
-    if (box_d2(n, p) > best || (c && box_far2(n, c) < r2)) continue;
+    sp--;
+    const bnode *n = &b->node[stack[sp]];
+    if (sd2[sp] > best || (c && box_far2(n, c) < r2)) continue;
     if (n->left < 0) {
       for (int i = n->first; i < n->first + n->count; i++) {
         uint32_t t = b->tri[i];
+        /* the plane's distance bounds the triangle's from below: a plane
+         * beyond best (by more than rounding) holds no nearer point */
+        const double *pl = b->pl + 4 * (size_t)t;
+        double pd = pl[0] * p[0] + pl[1] * p[1] + pl[2] * p[2] - pl[3];
+        if (pd * pd > best * (1 + 1e-9)) continue;
         double q[3];
         gr_closest_on_triangle(p, m->v + 3 * m->f[3 * t], m->v + 3 * m->f[3 * t + 1], m->v + 3 * m->f[3 * t + 2], q);
         double d2 = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]);
@@ -191,8 +263,12 @@ static void closest(const gr_bvh *b, const double p[3], double maxdist, const do
     }
     double dl = box_d2(&b->node[n->left], p), dr = box_d2(&b->node[n->right], p);
     if (sp + 2 > 128) continue; /* cannot happen for balanced trees of < 2^60 triangles */
-    if (dl < dr) { stack[sp++] = n->right; stack[sp++] = n->left; }
-    else { stack[sp++] = n->left; stack[sp++] = n->right; }
+    /* the nearer child on top; a child already beyond best is not pushed */
+    int near = dl < dr ? n->left : n->right, far = dl < dr ? n->right : n->left;
+    double dn = dl < dr ? dl : dr, df = dl < dr ? dr : dl;
+    /* (the order stays by box distance; the slab only prunes) */
+    if (df <= best && (df = fmax(df, slab_d2(&b->node[far], p))) <= best) { stack[sp] = far; sd2[sp++] = df; }
+    if (dn <= best && (dn = fmax(dn, slab_d2(&b->node[near], p))) <= best) { stack[sp] = near; sd2[sp++] = dn; }
   }
   if (h->tri >= 0) h->dist = sqrt(best);
 }
