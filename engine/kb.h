@@ -47,10 +47,13 @@ void gr_sha256_hex(const void *data, size_t n, char out[65]);
  * shared closest points take the nearest of the four nodes' patches
  * (2026-11-25), 7 since chord points found beyond the window go onto its
  * border and nesting compares boxes to 1e-9 mm (a pore bulging out of the
- * window had been taken for solid, 2026-11-25). A template whose
+ * window had been taken for solid, 2026-11-25), 8 since closest-point
+ * Newton steps stop at the error their convergence rate predicts (below
+ * 1e-7 L; contours move by nanometres, hatch ends by up to 0.8 um where a
+ * hatch line grazes the region's border, 2026-11-25). A template whose
  * signature begins otherwise was built under an older rule: its key is never
  * asked for again, `gradus kb list` marks it stale and prune removes it. */
-#define GR_TEMPLATE_GEOMETRY "{gradus_template: 7, grading: voxel-owned,"
+#define GR_TEMPLATE_GEOMETRY "{gradus_template: 8, grading: voxel-owned,"
 /* 1 when a signature is a Gradus template's of an older engine geometry
  * (it begins with "{gradus_template: " but not with GR_TEMPLATE_GEOMETRY). */
 int gr_kb_stale(const char *signature);
