@@ -623,28 +623,20 @@ int gr_field_eval_grad(const gr_field *f, size_t n, const double *x, const doubl
   return GR_OK;
 }
 
-/* sin and cos of a small angle d (|d| < 1e-3: Taylor terms to d^7, exact in
- * double precision), else libm's. */
+/* sin and cos of a small angle d, a Newton step's or a difference step's
+ * phase (|d| < 0.1: Taylor terms to d^11 and d^12, the rest below 1e-21;
+ * else libm's). */
 static void small_sincos(double d, double *s, double *c) {
-  if (fabs(d) >= 1e-3) { *s = sin(d); *c = cos(d); return; }
+  if (!(fabs(d) < 0.1)) { *s = sin(d); *c = cos(d); return; }
   double d2 = d * d;
-  *s = d * (1 - d2 / 6 * (1 - d2 / 20 * (1 - d2 / 42)));
-  *c = 1 - d2 / 2 * (1 - d2 / 12 * (1 - d2 / 30));
+  *s = d * (1 - d2 / 6 * (1 - d2 / 20 * (1 - d2 / 42 * (1 - d2 / 72 * (1 - d2 / 110)))));
+  *c = 1 - d2 / 2 * (1 - d2 / 12 * (1 - d2 / 30 * (1 - d2 / 56 * (1 - d2 / 90 * (1 - d2 / 132)))));
 }
 
 int gr_field_hess_fd(const gr_field *f, const double p[3], double h, double *v, double g[3], double hs[3][3],
                      gr_err *e) {
   gr_field_at at;
   return gr_field_hess_fd_at(f, p, h, v, g, hs, &at, e);
-}
-
-/* sin and cos of a step's phase d (|d| < 0.1: Taylor terms to d^11 and
- * d^12, the rest below 1e-21; else libm's). */
-static void step_sincos(double d, double *s, double *c) {
-  if (!(fabs(d) < 0.1)) { *s = sin(d); *c = cos(d); return; }
-  double d2 = d * d;
-  *s = d * (1 - d2 / 6 * (1 - d2 / 20 * (1 - d2 / 42 * (1 - d2 / 72 * (1 - d2 / 110)))));
-  *c = 1 - d2 / 2 * (1 - d2 / 12 * (1 - d2 / 30 * (1 - d2 / 56 * (1 - d2 / 90 * (1 - d2 / 132)))));
 }
 
 int gr_field_move_grad(const gr_field *f, gr_field_at *at, const double dp[3], double *v, double g[3], gr_err *e) {
@@ -655,7 +647,7 @@ int gr_field_move_grad(const gr_field *f, gr_field_at *at, const double dp[3], d
   double gl[3];
   for (int a = 0; a < 3; a++) {
     double sd, cd, s0 = at->sn[a], c0 = at->cs[a];
-    step_sincos(w[a] * dp[a], &sd, &cd);
+    small_sincos(w[a] * dp[a], &sd, &cd);
     at->sn[a] = s0 * cd + c0 * sd;
     at->cs[a] = c0 * cd - s0 * sd;
   }

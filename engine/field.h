@@ -109,8 +109,8 @@ typedef struct gr_field_at {
 /* gr_field_hess_fd at p, remembering p in *at. */
 int gr_field_hess_fd_at(const gr_field *f, const double p[3], double h, double *v, double g[3], double hs[3][3],
                         gr_field_at *at, gr_err *e);
-/* Move *at by dp (mm) and give the value and gradient there (as
- * gr_field_eval_grad at at->p + dp, to rounding). */
+/* Move *at (filled by gr_field_hess_fd_at) by dp (mm) and give the value
+ * and gradient there (as gr_field_eval_grad at at->p + dp, to rounding). */
 int gr_field_move_grad(const gr_field *f, gr_field_at *at, const double dp[3], double *v, double g[3], gr_err *e);
 
 /* ---- sampling ---- */
