@@ -620,6 +620,90 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
   return GR_OK;
 }
 
+/* A predicted closest point x of p (near the true one, on its patch)
+ * polished by projections of p onto phi's tangent plane, the gradients after
+ * the first moved from its sines and cosines (gr_field_move_grad): q and the
+ * signed distance sd (+ on the gradient's side); 1 when accepted, 0 when not
+ * (solve exactly), -1 on error.
+ * Each projection moves the foot by D; it converges linearly, the ratio rho
+ * of successive moves about d kappa, so the foot is left within
+ * rho D / (1 - rho): stopped when that is below 1e-6 L (T there is then off
+ * by 1e-6 L |grad T|, below 1e-7 L for any grading with |grad T| < 0.1; a
+ * tighter 1e-7 L, as exact_newton stops, left seven times more points to
+ * the exact solve on the continuous P job).
+ * The distance is then off by about D^2 / 2 times the larger of
+ * kappa / (1 - d kappa) (along the surface; kappa <= 1 / reach) and
+ * |phi_nn| / |grad phi| (across it; estimated from the last two gradients):
+ * accepted when that is below MODEL_ERR L and the distance is within the
+ * reach (then no other patch is nearer). */
+#define MODEL_ERR 1e-8
+#define MODEL_ROUNDS 4
+static int model_foot(const offset *f, const double p[3], const double x[3], double q[3], double *sd, gr_err *e) {
+  gr_field_at at;
+  double v, g[3], gp[3], o[3] = {x[0], x[1], x[2]}, prev = INFINITY, prev2 = 0;
+  if (gr_field_grad_at(f->phi, x, &v, g, &at, e)) return -1;
+  for (int r = 0; r < MODEL_ROUNDS; r++) {
+    if (r) {
+      double dp[3] = {q[0] - o[0], q[1] - o[1], q[2] - o[2]};
+      memcpy(gp, g, sizeof g);
+      memcpy(o, q, sizeof o);
+      if (gr_field_move_grad(f->phi, &at, dp, &v, g, e)) return -1;
+    }
+    double g2 = gr_dot3(g, g), s = v, D2 = 0;
+    if (!(g2 > 1e-300)) return 0;
+    for (int a = 0; a < 3; a++) s += g[a] * (p[a] - o[a]);
+    s /= g2;
+    for (int a = 0; a < 3; a++) {
+      q[a] = p[a] - s * g[a];
+      D2 += (q[a] - o[a]) * (q[a] - o[a]);
+    }
+    *sd = s * sqrt(g2);
+    double d = fabs(*sd), D = sqrt(D2), rho = D / prev;
+    if (!(d < f->reach)) return 0;
+    if (r > 0 && (D == 0 || (rho < 0.5 && rho * D < 1e-6 * f->L * (1 - rho)))) {
+      double dg[3] = {g[0] - gp[0], g[1] - gp[1], g[2] - gp[2]};
+      double K = fmax(1 / (f->reach - d), sqrt(gr_dot3(dg, dg) / (gr_dot3(gp, gp) * prev2)));
+      return K * D2 <= 2 * MODEL_ERR * f->L;
+    }
+    prev = D;
+    prev2 = D2;
+  }
+  return 0;
+}
+
+int gr_offset_eval_model(const gr_field *f_, size_t n, const double *x, const double *y, const double *z,
+                         const double *pred, double *out, double *grad, gr_err *e) {
+  const offset *f = gr_field_callback_data(f_, offset_eval);
+  if (!f) return gr_fail(e, GR_EARG, "offset evaluation needs an offset field");
+  enum { B = 256 };
+  double pb[3 * B], sd[B], q[3 * B], vk[B];
+  size_t id[B];
+  for (size_t s = 0; s < n; s += B) {
+    size_t m = n - s < B ? n - s : B, k = 0;
+    for (size_t i = 0; i < m; i++) {
+      const double *c = pred + 3 * (s + i);
+      double P[3] = {x[s + i], y[s + i], z[s + i]};
+      out[s + i] = NAN;
+      if (f->mode != GR_DIST_EXACT || isnan(c[0]) || !(dist3(P, c) < f->reach)) continue;
+      int ok = model_foot(f, P, c, q + 3 * k, sd + k, e);
+      if (ok < 0) return e->code;
+      if (!ok) continue;
+      memcpy(pb + 3 * k, P, sizeof P);
+      id[k++] = i;
+    }
+    int rc = values_at(f, k, pb, q, sd, vk, e);
+    if (rc) return rc;
+    for (size_t i = 0; i < k; i++) {
+      size_t o = s + id[i];
+      out[o] = vk[i];
+      if (!grad) continue;
+      double d = fabs(sd[i]), sg = f->kind == GR_OFFSET_SHEET ? 1 : (f->side > 0 ? -1 : 1) * (sd[i] < 0 ? -1 : 1);
+      for (int a = 0; a < 3; a++) grad[3 * o + a] = d > 1e-9 ? sg * (pb[3 * i + a] - q[3 * i + a]) / d : NAN;
+    }
+  }
+  return GR_OK;
+}
+
 const char *gr_offset_warning(const gr_field *f) {
   const offset *o = gr_field_callback_data(f, offset_eval);
   return o ? o->warning : "";

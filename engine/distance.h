@@ -95,5 +95,13 @@ int gr_offset_values(const gr_field *f, size_t n, const double *p, double *q, do
  * grad (3n, or NULL): the gradient of the distance part (NaN on H). */
 int gr_offset_eval_near(const gr_field *f, size_t n, const double *x, const double *y,
                         const double *z, const double *hint, int nh, double *out, double *grad, gr_err *e);
+/* f at n points from predicted closest points pred (3n, mm; NaN: none),
+ * exact mode: each prediction is projected onto phi's tangent plane (twice
+ * at most) and accepted where the projection's move bounds the distance's
+ * error below 1e-8 L and the distance is within H's reach (no other patch
+ * can be nearer). out[i] = NaN where not accepted: solve those with
+ * gr_offset_eval_near. grad as there. */
+int gr_offset_eval_model(const gr_field *f, size_t n, const double *x, const double *y, const double *z,
+                         const double *pred, double *out, double *grad, gr_err *e);
 
 #endif

@@ -659,14 +659,34 @@ int gr_field_move_grad(const gr_field *f, gr_field_at *at, const double dp[3], d
   return GR_OK;
 }
 
-int gr_field_hess_fd_at(const gr_field *f, const double p[3], double h, double *v, double g[3], double hs[3][3],
-                        gr_field_at *at, gr_err *e) {
+int gr_field_grad_at(const gr_field *f, const double p[3], double *v, double g[3], gr_field_at *at, gr_err *e) {
   if (!f) return gr_fail(e, GR_EARG, "field is missing (NULL)");
   memcpy(at->p, p, sizeof at->p);
   at->trig = 0;
+  if (f->kind != K_TPMS) return gr_field_eval_grad(f, 1, &p[0], &p[1], &p[2], v, &g[0], &g[1], &g[2], e);
+  const double *w = f->w;
+  double gl[3];
+  for (int a = 0; a < 3; a++) {
+    double X = w[a] * (p[a] - (f->origin[a] + f->cell[a] / 2));
+    at->sn[a] = sin(X);
+    at->cs[a] = cos(X);
+  }
+  at->trig = 1;
+  *v = tpms_trig(f->surface, at->sn[0], at->cs[0], at->sn[1], at->cs[1], at->sn[2], at->cs[2], gl) - f->level;
+  for (int c = 0; c < 3; c++) g[c] = w[c] * gl[c];
+  if (!isfinite(*v) || first_bad(3, g, NULL, NULL) >= 0)
+    return gr_fail(e, GR_ENUM, "field %s or its gradient is not finite at x=%.6g, y=%.6g, z=%.6g", f->desc, p[0],
+                   p[1], p[2]);
+  return GR_OK;
+}
+
+int gr_field_hess_fd_at(const gr_field *f, const double p[3], double h, double *v, double g[3], double hs[3][3],
+                        gr_field_at *at, gr_err *e) {
+  if (!f) return gr_fail(e, GR_EARG, "field is missing (NULL)");
   if (!(h > 0) || !isfinite(h)) return gr_fail(e, GR_EARG, "Hessian step must be > 0, got %g", h);
+  int rc = gr_field_grad_at(f, p, v, g, at, e);
+  if (rc) return rc;
   if (f->kind != K_TPMS) {
-    int rc = gr_field_eval_grad(f, 1, &p[0], &p[1], &p[2], v, &g[0], &g[1], &g[2], e);
     for (int a = 0; a < 3 && rc == GR_OK; a++) {
       double y[3] = {p[0], p[1], p[2]};
       y[a] += h;
@@ -676,24 +696,15 @@ int gr_field_hess_fd_at(const gr_field *f, const double p[3], double h, double *
     return rc;
   }
   const double *w = f->w;
-  double X[3], sn[3], cs[3], gl[3];
   for (int a = 0; a < 3; a++) {
-    X[a] = w[a] * (p[a] - (f->origin[a] + f->cell[a] / 2));
-    sn[a] = at->sn[a] = sin(X[a]);
-    cs[a] = at->cs[a] = cos(X[a]);
-  }
-  at->trig = 1;
-  *v = tpms_trig(f->surface, sn[0], cs[0], sn[1], cs[1], sn[2], cs[2], gl) - f->level;
-  for (int c = 0; c < 3; c++) g[c] = w[c] * gl[c];
-  for (int a = 0; a < 3; a++) {
-    double sd, cd, s2[3] = {sn[0], sn[1], sn[2]}, c2[3] = {cs[0], cs[1], cs[2]}, g2[3];
+    double sd, cd, s2[3] = {at->sn[0], at->sn[1], at->sn[2]}, c2[3] = {at->cs[0], at->cs[1], at->cs[2]}, g2[3];
     small_sincos(w[a] * h, &sd, &cd);
-    s2[a] = sn[a] * cd + cs[a] * sd;
-    c2[a] = cs[a] * cd - sn[a] * sd;
+    s2[a] = at->sn[a] * cd + at->cs[a] * sd;
+    c2[a] = at->cs[a] * cd - at->sn[a] * sd;
     tpms_trig(f->surface, s2[0], c2[0], s2[1], c2[1], s2[2], c2[2], g2);
     for (int c = 0; c < 3; c++) hs[a][c] = (w[c] * g2[c] - g[c]) / h;
   }
-  if (!isfinite(*v) || first_bad(3, g, hs[0], hs[1]) >= 0 || first_bad(3, hs[2], NULL, NULL) >= 0)
+  if (first_bad(3, hs[0], hs[1], hs[2]) >= 0)
     return gr_fail(e, GR_ENUM, "field %s or its derivatives are not finite at x=%.6g, y=%.6g, z=%.6g", f->desc, p[0],
                    p[1], p[2]);
   return GR_OK;

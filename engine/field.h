@@ -106,10 +106,12 @@ typedef struct gr_field_at {
   double sn[3], cs[3]; /* sines and cosines of its phases (trig = 1) */
   int trig;            /* 1: a plain TPMS whose sn, cs are valid */
 } gr_field_at;
+/* gr_field_eval_grad at one point p, remembering p in *at. */
+int gr_field_grad_at(const gr_field *f, const double p[3], double *v, double g[3], gr_field_at *at, gr_err *e);
 /* gr_field_hess_fd at p, remembering p in *at. */
 int gr_field_hess_fd_at(const gr_field *f, const double p[3], double h, double *v, double g[3], double hs[3][3],
                         gr_field_at *at, gr_err *e);
-/* Move *at (filled by gr_field_hess_fd_at) by dp (mm) and give the value
+/* Move *at (filled by gr_field_grad_at or gr_field_hess_fd_at) by dp (mm) and give the value
  * and gradient there (as gr_field_eval_grad at at->p + dp, to rounding). */
 int gr_field_move_grad(const gr_field *f, gr_field_at *at, const double dp[3], double *v, double g[3], gr_err *e);
 

@@ -759,6 +759,71 @@ TEST(near_hints_both_patches) {
   gr_field_free(phi);
 }
 
+/* The model evaluation (gr_offset_eval_model: a predicted closest point
+ * polished by projections onto phi's tangent plane, accepted only where the
+ * moves bound the errors) against the exact solve (gr_offset_eval_near from
+ * the converged closest point), for every surface of the catalogue as a
+ * graded sheet and a graded network: points on a plane grid near H,
+ * predictions = the exact feet moved by 0, 30 nm and 30 um in pseudo-random
+ * directions. Every accepted value must agree with the exact one within
+ * 1.5e-7 L (the exact solve stops at 1e-7 L; the model leaves the foot within
+ * 1e-6 L, T = 0.03 mm per mm along it), its gradient within
+ * 1e-3; 30 nm predictions must be accepted nearly wherever exact ones are
+ * (the model is used, not skipped), 30 um ones less often (the bound
+ * refuses what the projections do not settle). */
+TEST(model_eval_vs_exact) {
+  gr_err e;
+  enum { N = 24 * 24 };
+  double x[N], y[N], z[N], q[3 * N], sd[N], pred[3 * N], ve[N], vm[N], gm[3 * N], ge[3 * N];
+  for (int s = 0; s < gr_tpms_count(); s++)
+    for (int kind = 0; kind < 2; kind++) {
+      gr_field *phi = gr_field_tpms(gr_tpms_name(s), 2, NULL, 0, &e);
+      CHECK(phi != NULL, "%s", e.msg);
+      if (!phi) continue;
+      gr_offset_opts o = gr_offset_defaults();
+      o.surface = phi;
+      o.box_hi[0] = o.box_hi[1] = o.box_hi[2] = 2;
+      o.margin = 0.2;
+      o.kind = kind ? GR_OFFSET_NETWORK : GR_OFFSET_SHEET;
+      o.thickness_expr = kind ? "0.1 + 0.03*u" : "0.06 + 0.02*w";
+      gr_field *g = gr_offset_field_new(&o, &e);
+      CHECK(g != NULL, "%s: %s", gr_tpms_name(s), e.msg);
+      if (!g) { gr_field_free(phi); continue; }
+      for (int i = 0; i < N; i++) x[i] = 0.1 + 1.8 * (i % 24) / 23.0, y[i] = 0.1 + 1.8 * (i / 24) / 23.0, z[i] = 0.73;
+      int ok = !gr_offset_closest(g, N, x, y, z, 0.3, q, sd, &e) &&
+               !gr_offset_eval_near(g, N, x, y, z, q, 1, ve, ge, &e);
+      CHECK(ok, "%s: %s", gr_tpms_name(s), e.msg);
+      double worst = 0, gworst = 0;
+      int acc[3] = {0, 0, 0};
+      for (int r = 0; r < 3 && ok; r++) {
+        double err = r == 0 ? 0 : r == 1 ? 3e-5 : 3e-2;
+        unsigned st = 12345u + 7u * s;
+        for (int i = 0; i < N; i++) {
+          double dir[3], n = 0;
+          for (int a = 0; a < 3; a++) st = st * 1103515245u + 12345u, dir[a] = (st >> 8) / 8388608.0 - 1, n += dir[a] * dir[a];
+          for (int a = 0; a < 3; a++) pred[3 * i + a] = q[3 * i + a] + err * dir[a] / sqrt(n);
+        }
+        if (gr_offset_eval_model(g, N, x, y, z, pred, vm, gm, &e)) { CHECK(0, "%s: %s", gr_tpms_name(s), e.msg); break; }
+        for (int i = 0; i < N; i++) {
+          if (isnan(vm[i]) || isnan(q[3 * i])) continue;
+          acc[r]++;
+          worst = fmax(worst, fabs(vm[i] - ve[i]));
+          for (int a = 0; a < 3; a++)
+            if (!isnan(ge[3 * i + a])) gworst = fmax(gworst, fabs(gm[3 * i + a] - ge[3 * i + a]));
+        }
+      }
+      printf("  info: %-14s %-7s: of %d points, predictions off by 0 / 30 nm / 30 um accepted at %d / %d / %d;"
+             " values off by %.2g nm, gradients by %.2g\n", gr_tpms_name(s), kind ? "network" : "sheet", N, acc[0],
+             acc[1], acc[2], worst * 1e6, gworst);
+      CHECK(ok && worst < 1.5e-7 * 2, "%s: model values off by %.3g nm", gr_tpms_name(s), worst * 1e6);
+      CHECK(ok && acc[0] >= 50 && acc[1] >= 0.85 * acc[0], "%s: accepted %d, %d", gr_tpms_name(s), acc[0], acc[1]);
+      CHECK(ok && acc[2] < acc[1], "%s: 30 um predictions accepted as often as 30 nm ones (%d)", gr_tpms_name(s), acc[2]);
+      CHECK(ok && gworst < 1e-3, "%s: gradients off by %.3g", gr_tpms_name(s), gworst);
+      gr_field_free(g);
+      gr_field_free(phi);
+    }
+}
+
 int main(void) {
   RUN(triangle_vs_sampling);
   RUN(bvh_sphere);
@@ -772,5 +837,6 @@ int main(void) {
   RUN(thick_sheet_nearest_patch);
   RUN(direct_eval_on_surface);
   RUN(near_hints_both_patches);
+  RUN(model_eval_vs_exact);
   DONE();
 }
