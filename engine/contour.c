@@ -411,6 +411,7 @@ static int all_covered(const gr_rings *sec, const gr_rings *core, double b, doub
   gr_polydist *pd = core->npts ? gr_polydist_new(core, b, e) : NULL;
   if (core->npts && !pd) return -1;
   int ok = 1;
+  size_t hint = (size_t)-1; /* the core edge that covered the last sample */
   for (size_t r = 0; r < sec->nrings; r++) {
     const double *p = gr_ring_xy(sec, r);
     size_t n = gr_ring_len(sec, r);
@@ -421,7 +422,7 @@ static int all_covered(const gr_rings *sec, const gr_rings *core, double b, doub
       for (int k = 0; k < m; k++) {
         double t = (double)k / m, x = p[2 * a] + t * (q[0] - p[2 * a]), y = p[2 * a + 1] + t * (q[1] - p[2 * a + 1]);
         if (!in_box(box, x, y)) continue;
-        if (pd && gr_polydist_within(pd, x, y, b + 0.5 * tol)) continue;
+        if (pd && gr_polydist_within(pd, x, y, b + 0.5 * tol, &hint)) continue;
         ok = 0; /* an uncovered boundary sample: where the slivers are */
         fail[0] = fmin(fail[0], x); fail[1] = fmin(fail[1], y);
         fail[2] = fmax(fail[2], x); fail[3] = fmax(fail[3], y);

@@ -22,6 +22,18 @@ static void pd_free(poly_dist *d) {
   free(d->ab); free(d->bstart); free(d->bedge);
 }
 
+/* Squared distance from (x, y) to edge p (ax ay bx by) and the nearest
+ * point's parameter t along it. */
+static double edge_d2(const double *p, double x, double y, double *tpar) {
+  double ex = p[2] - p[0], ey = p[3] - p[1], L2 = ex * ex + ey * ey;
+  double t = L2 > 0 ? ((x - p[0]) * ex + (y - p[1]) * ey) / L2 : 0;
+  if (t < 0) t = 0;
+  if (t > 1) t = 1;
+  double qx = p[0] + t * ex - x, qy = p[1] + t * ey - y;
+  *tpar = t;
+  return qx * qx + qy * qy;
+}
+
 /* Nearest edge to (x, y) among edges within rmax (searching rings of buckets
  * outward). Returns the squared distance (INFINITY if none within rmax) and
  * the edge and parameter. With `any`, returns at the first edge whose
@@ -42,12 +54,7 @@ static double pd_nearest(const poly_dist *d, double x, double y, double rmax, in
           size_t bk = (size_t)i + (size_t)d->bx * j;
           for (size_t q = d->bstart[bk]; q < d->bstart[bk + 1]; q++) {
             size_t ed = d->bedge[q];
-            const double *p = d->ab + 4 * ed;
-            double ex = p[2] - p[0], ey = p[3] - p[1], L2 = ex * ex + ey * ey;
-            double t = L2 > 0 ? ((x - p[0]) * ex + (y - p[1]) * ey) / L2 : 0;
-            if (t < 0) t = 0;
-            if (t > 1) t = 1;
-            double qx = p[0] + t * ex - x, qy = p[1] + t * ey - y, d2 = qx * qx + qy * qy;
+            double t, d2 = edge_d2(d->ab + 4 * ed, x, y, &t);
             if (d2 < best) { best = d2; *edge = ed; *tpar = t; }
             if (any && sqrt(d2) <= rmax) return d2;
           }
@@ -414,12 +421,15 @@ void gr_polydist_free(gr_polydist *p) {
 
 double gr_polydist_at(const gr_polydist *p, double x, double y, double q[2]) { return pd_signed(&p->d, x, y, q); }
 
-int gr_polydist_within(const gr_polydist *p, double x, double y, double r) {
+int gr_polydist_within(const gr_polydist *p, double x, double y, double r, size_t *hint) {
   size_t ed;
   double t;
   if (p->d.ne == 0 || !(r >= 0)) return 0;
+  if (hint && *hint < p->d.ne && sqrt(edge_d2(p->d.ab + 4 * *hint, x, y, &t)) <= r) return 1;
   double d2 = pd_nearest(&p->d, x, y, r, 1, &ed, &t);
-  return isfinite(d2) && sqrt(d2) <= r;
+  if (!(isfinite(d2) && sqrt(d2) <= r)) return 0;
+  if (hint) *hint = ed;
+  return 1;
 }
 
 int gr_polydist_grid(const gr_polydist *p, double x0, double y0, double h, int nx, int ny,

@@ -86,8 +86,10 @@ void gr_polydist_free(gr_polydist *d); /* NULL is fine */
  * NULL) receives the nearest boundary point. +INFINITY without edges. */
 double gr_polydist_at(const gr_polydist *d, double x, double y, double q[2]);
 /* 1 if some boundary point is within r of (x, y), i.e. |gr_polydist_at| <= r,
- * else 0; stops at the first edge found (cheaper than the distance). */
-int gr_polydist_within(const gr_polydist *d, double x, double y, double r);
+ * else 0; stops at the first edge found (cheaper than the distance). hint
+ * (or NULL): an edge index tried first, set to the edge found (queries along
+ * a curve mostly find the previous query's edge). */
+int gr_polydist_within(const gr_polydist *d, double x, double y, double r, size_t *hint);
 /* Signed distances at the nodes (x0 + i h, y0 + j h), i < nx, j < ny, into
  * v[i + nx j]; |values| beyond rmax are clamped to rmax (sign exact). */
 int gr_polydist_grid(const gr_polydist *d, double x0, double y0, double h, int nx, int ny,
