@@ -16,6 +16,7 @@ typedef struct poly_dist {
   int bx, by;           /* buckets per axis */
   size_t *bstart, *bedge; /* CSR: edges of bucket k are bedge[bstart[k]..bstart[k+1]) */
   double b;             /* offset distance, mm: fn returns sd + b */
+  const gr_ms_grid *grid; /* sampled sd + b (signs exact, |sd| a lower bound), or NULL */
 } poly_dist;
 
 static void pd_free(poly_dist *d) {
@@ -102,6 +103,24 @@ static int pd_inside(const poly_dist *d, double x, double y) {
   return odd;
 }
 
+/* Inside (1), outside (0) or not known (-1) from the sampled grid: a corner
+ * C of the grid cell holding (x, y) whose sampled |sd| exceeds its distance
+ * to the point has no boundary between them, so the point is on C's side
+ * (the grid's signs are the even-odd rule's, as pd_inside's). Near the
+ * offset contour, b deep, this spares the row scan. */
+static int pd_grid_side(const poly_dist *d, double x, double y) {
+  const gr_ms_grid *g = d->grid;
+  if (!g) return -1;
+  int i = (int)floor((x - g->x0) / g->hx), j = (int)floor((y - g->y0) / g->hy);
+  for (int c = 0; c < 4; c++) {
+    int ia = i + (c & 1), jb = j + (c >> 1);
+    if (ia < 0 || jb < 0 || ia >= g->nx || jb >= g->ny) continue;
+    double sd = g->v[ia + (size_t)g->nx * jb] - d->b, dx = x - (g->x0 + ia * g->hx), dy = y - (g->y0 + jb * g->hy);
+    if (dx * dx + dy * dy < sd * sd) return sd < 0;
+  }
+  return -1;
+}
+
 /* Exact signed distance (negative inside) of (x, y) to the edges; q (may be
  * NULL) receives the nearest boundary point. +INFINITY without edges. */
 static double pd_signed(const poly_dist *d, double x, double y, double q[2]) {
@@ -111,7 +130,9 @@ static double pd_signed(const poly_dist *d, double x, double y, double q[2]) {
   for (double r = 2 * d->bs; !isfinite(d2); r *= 4) d2 = pd_nearest(d, x, y, r, 0, &ed, &t);
   const double *a = d->ab + 4 * ed;
   if (q) { q[0] = a[0] + t * (a[2] - a[0]); q[1] = a[1] + t * (a[3] - a[1]); }
-  return pd_inside(d, x, y) ? -sqrt(d2) : sqrt(d2);
+  int in = pd_grid_side(d, x, y);
+  if (in < 0) in = pd_inside(d, x, y);
+  return in ? -sqrt(d2) : sqrt(d2);
 }
 
 /* Signed distance (negative inside) + b, exact. */
@@ -358,6 +379,7 @@ int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
   }
   if (!rc) {
     gr_rings_clear(out);
+    d.grid = &g; /* its signs now decide most refined points' sides */
     rc = gr_ms_contour(&g, pd_fn, pd_gfn, &d, 1, tol, out, e);
   }
   if (!rc && chord_tol > 0) {

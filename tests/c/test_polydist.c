@@ -197,10 +197,47 @@ TEST(crossing_rings_even_odd) {
   gr_rings_free(r);
 }
 
+/* gr_polydist_grid (each edge updates only the nodes of its rmax capsule,
+ * row by row) against the point query clamped at rmax, node by node: a
+ * 37-gon (every edge slanted) with a rotated square hole, a grid whose
+ * spacing is not commensurate with anything, three rmax. */
+TEST(grid_matches_point_queries) {
+  gr_rings *r = gr_rings_new();
+  for (int k = 0; k < 37; k++) gr_rings_point(r, 0.5 + 0.4 * cos(2 * M_PI * k / 37), 0.5 + 0.4 * sin(2 * M_PI * k / 37));
+  gr_rings_close(r);
+  for (int k = 0; k < 4; k++) gr_rings_point(r, 0.5 + 0.15 * cos(0.3 - M_PI * k / 2), 0.5 + 0.15 * sin(0.3 - M_PI * k / 2));
+  gr_rings_close(r);
+  gr_err e;
+  gr_err_clear(&e);
+  CHECK(gr_rings_nest(r, &e) == 0, "%s", e.msg);
+  gr_polydist *pd = gr_polydist_new(r, 0.03, &e);
+  CHECK(pd != NULL, "%s", e.msg);
+  enum { NX = 83, NY = 79 };
+  static double v[NX * NY];
+  const double rmax[3] = {0.013, 0.05, 0.3};
+  for (int k = 0; k < 3 && pd; k++) {
+    CHECK(gr_polydist_grid(pd, -0.01, 0.003, 0.0131, NX, NY, rmax[k], v, &e) == 0, "%s", e.msg);
+    double worst = 0;
+    int near = 0;
+    for (int j = 0; j < NY; j++)
+      for (int i = 0; i < NX; i++) {
+        double s = gr_polydist_at(pd, -0.01 + i * 0.0131, 0.003 + j * 0.0131, NULL);
+        double want = fabs(s) <= rmax[k] ? s : (s < 0 ? -rmax[k] : rmax[k]);
+        near += fabs(s) <= rmax[k];
+        worst = fmax(worst, fabs(v[i + NX * j] - want));
+      }
+    CHECK(worst < 1e-12 && near > 100, "rmax %g: %d nodes within, grid off the point queries by %.3g", rmax[k], near,
+          worst);
+  }
+  gr_polydist_free(pd);
+  gr_rings_free(r);
+}
+
 int main(void) {
   RUN(within_matches_the_distance);
   RUN(within_analytic);
   RUN(repeated_corner_points);
   RUN(crossing_rings_even_odd);
+  RUN(grid_matches_point_queries);
   DONE();
 }
