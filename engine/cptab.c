@@ -10,6 +10,9 @@ void gr_cptab_free(gr_cptab *t) {
   if (!t) return;
   free(t->q);
   free(t->sd);
+  free(t->st);
+  free(t->sq);
+  free(t->ssd);
   free(t);
 }
 
@@ -43,7 +46,13 @@ gr_cptab *gr_cptab_new(const double cell[3], double h, double margin, const gr_f
   size_t np = (size_t)t->P[0] * t->P[1] * nl;
   t->q = malloc(3 * np * sizeof *t->q);
   t->sd = malloc(np * sizeof *t->sd);
-  if (!t->q || !t->sd) { gr_cptab_free(t); return gr_fail(e, GR_EMEM, "out of memory"), NULL; }
+  t->st = calloc(np, 1);
+  t->sq = malloc(3 * np * sizeof *t->sq);
+  t->ssd = malloc(np * sizeof *t->ssd);
+  if (!t->q || !t->sd || !t->st || !t->sq || !t->ssd) {
+    gr_cptab_free(t);
+    return gr_fail(e, GR_EMEM, "out of memory"), NULL;
+  }
   return t;
 }
 
@@ -247,29 +256,63 @@ static int cut_fn(void *ud_, size_t n, const double *x, const double *y, double 
   return GR_OK;
 }
 
-/* The field's values at the slice grid's nodes from their closest points
- * (gr_offset_values). T is evaluated only at nodes within tmax + FAR_CELLS
- * grid cells of H: beyond, |value| >= |sd| - tmax is more than FAR_CELLS
- * cells, and so is every node within two cells of it, farther from zero
- * than anything marching squares or the hidden-boundary search (which
- * looks at nodes within HID_GUARD cell diagonals of zero and their
- * neighbours, hidden.c) reads as more than a sign: those get the bound
- * (the value with T = tmax). Not for a trimmed field (the domain's cut
- * takes the lattice value's size). */
+/* The strict check of table node k of layer q (gr_offset_strict, in the
+ * table's own frame, so that every member gets the same answer whichever
+ * asks first): made once and kept; a member that finds it being made by
+ * another thread makes it too, without keeping it. */
+static int strict_node(const gr_cptab *t, int q, size_t k, double qk[3], double *sdk, gr_err *e) {
+  size_t np = (size_t)t->P[0] * t->P[1], i = np * q + k;
+  if (__atomic_load_n(&t->st[i], __ATOMIC_ACQUIRE) == 2) {
+    memcpy(qk, t->sq + 3 * i, 3 * sizeof *qk);
+    *sdk = t->ssd[i];
+    return GR_OK;
+  }
+  unsigned char zero = 0;
+  int mine = __atomic_compare_exchange_n(&t->st[i], &zero, 1, 0, __ATOMIC_ACQ_REL, __ATOMIC_ACQUIRE);
+  double p[3] = {t->lo[0] + (double)(k % t->P[0]) * t->h, t->lo[1] + (double)(k / t->P[0]) * t->h, t->z0 + q * t->t};
+  memcpy(qk, t->q + 3 * i, 3 * sizeof *qk);
+  *sdk = t->sd[i];
+  int rc = gr_offset_strict(t->field, p, qk, sdk, e);
+  if (rc || !mine) return rc;
+  memcpy(t->sq + 3 * i, qk, 3 * sizeof *qk);
+  t->ssd[i] = *sdk;
+  __atomic_store_n(&t->st[i], 2, __ATOMIC_RELEASE);
+  return GR_OK;
+}
+
+/* The field's values at the slice grid's nodes (nx a row; window node n is
+ * table node kmap[n], its closest point shifted by off[n]) from the table's
+ * closest points Q and signed distances sd (gr_offset_values), nodes whose
+ * value is within twice H's error bound of zero through the strict check
+ * (strict_node). T is evaluated only at nodes within tmax + FAR_CELLS grid
+ * cells + 2 herr of H (the table's sd may be up to 2 herr too long before the
+ * strict check): beyond, |value| >= |sd| - tmax is more than FAR_CELLS cells,
+ * and so is every node within two cells of it, farther from zero than
+ * anything marching squares or the hidden-boundary search (which looks at
+ * nodes within HID_GUARD cell diagonals of zero and their neighbours,
+ * hidden.c) reads as more than a sign: those get the bound (the value with
+ * T = tmax). Not for a trimmed field (the domain's cut takes the lattice
+ * value's size). */
 #define FAR_CELLS 6
-static int node_values(const gr_field *f, int cut, double h, size_t nn, const double *pts, double *Q,
-                       double *sd, double *v, gr_err *e) {
-  double tmax = gr_offset_max_thickness(f);
-  if (cut || !(tmax >= 0)) return gr_offset_values(f, nn, pts, Q, sd, v, e);
+static int node_values(const gr_cptab *t, int q, const gr_field *f, int cut, double h, size_t nn, const size_t *kmap,
+                       const double *off, double *Q, double *sd, double *v, gr_err *e) {
+  double tmax = gr_offset_max_thickness(f), herr = gr_offset_herr(f);
   double *Qc = malloc(3 * nn * sizeof *Qc);
   if (!Qc) return gr_fail(e, GR_EMEM, "out of memory");
   for (size_t n = 0; n < nn; n++) {
-    int far = fabs(sd[n]) > tmax + FAR_CELLS * h;
+    int far = !cut && tmax >= 0 && fabs(sd[n]) > tmax + FAR_CELLS * h + 2 * herr;
     for (int a = 0; a < 3; a++) Qc[3 * n + a] = far ? NAN : Q[3 * n + a];
   }
-  int rc = gr_offset_values(f, nn, pts, Qc, sd, v, e);
-  for (size_t n = 0; n < nn && !rc; n++)
-    if (!isnan(Qc[3 * n])) memcpy(Q + 3 * n, Qc + 3 * n, 3 * sizeof *Q);
+  int rc = gr_offset_values(f, nn, NULL, Qc, sd, v, e);
+  for (size_t n = 0; n < nn && !rc; n++) {
+    if (isnan(Qc[3 * n]) || !(fabs(v[n]) < 2 * herr)) continue;
+    double qk[3], sdk;
+    if ((rc = strict_node(t, q, kmap[n], qk, &sdk, e))) break;
+    if (sdk == sd[n]) continue;
+    for (int a = 0; a < 3; a++) Q[3 * n + a] = qk[a] + off[3 * n + a];
+    sd[n] = sdk;
+    rc = gr_offset_values(f, 1, NULL, Q + 3 * n, sd + n, v + n, e);
+  }
   free(Qc);
   return rc;
 }
@@ -287,22 +330,27 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
   gr_slice_grid_size(so, &nx, &ny, &hx, &hy);
   size_t nn = (size_t)nx * ny, np = (size_t)P[0] * P[1];
   double *Q = malloc((cut ? 9 : 8) * nn * sizeof *Q);
-  if (!Q) return gr_fail(e, GR_EMEM, "out of memory");
-  double *sd = Q + 3 * nn, *v = Q + 4 * nn, *pts = Q + 5 * nn;
+  size_t *kmap = malloc(nn * sizeof *kmap);
+  if (!Q || !kmap) {
+    free(Q);
+    free(kmap);
+    return gr_fail(e, GR_EMEM, "out of memory");
+  }
+  double *sd = Q + 3 * nn, *v = Q + 4 * nn, *off = Q + 5 * nn;
   double sh[3] = {o[0] - t->oref[0], o[1] - t->oref[1], o[2] - t->oref[2]};
   const double *tq = t->q + 3 * np * q, *tsd = t->sd + np * q;
   for (int b = 0; b < ny; b++)
     for (int a = 0; a < nx; a++) {
       size_t n = a + (size_t)nx * b, k = a % P[0] + (size_t)P[0] * (b % P[1]);
-      Q[3 * n] = tq[3 * k] + sh[0] + (a / P[0]) * t->cell[0];
-      Q[3 * n + 1] = tq[3 * k + 1] + sh[1] + (b / P[1]) * t->cell[1];
-      Q[3 * n + 2] = tq[3 * k + 2] + sh[2];
+      off[3 * n] = sh[0] + (a / P[0]) * t->cell[0];
+      off[3 * n + 1] = sh[1] + (b / P[1]) * t->cell[1];
+      off[3 * n + 2] = sh[2];
+      for (int c = 0; c < 3; c++) Q[3 * n + c] = tq[3 * k + c] + off[3 * n + c];
       sd[n] = tsd[k];
-      pts[3 * n] = so->lo[0] + a * hx;
-      pts[3 * n + 1] = so->lo[1] + b * hy;
-      pts[3 * n + 2] = z;
+      kmap[n] = k;
     }
-  int rc = node_values(f, cut, fmax(hx, hy), nn, pts, Q, sd, v, e);
+  int rc = node_values(t, q, f, cut, fmax(hx, hy), nn, kmap, off, Q, sd, v, e);
+  free(kmap);
   double *dv = Q + 8 * nn;
   unsigned char *far = cut ? malloc(nn) : NULL;
   if (!rc && cut && !far) rc = gr_fail(e, GR_EMEM, "out of memory");

@@ -27,6 +27,11 @@ typedef struct gr_cptab {
   double dmax;           /* closest points are exact within this distance of H, mm */
   const gr_field *field; /* the reference class's field */
   double *q, *sd;        /* per template layer, Px*Py nodes: closest point, signed distance */
+  /* the strict check of a node's closest point (gr_offset_strict: it does
+   * not depend on T), made once for the group when a member first needs
+   * it: st 0 not made, 1 being made, 2 made (atomic); sq, ssd its result */
+  unsigned char *st;
+  double *sq, *ssd;
 } gr_cptab;
 
 /* Nodes per period, or 0 when the slice grid (spacing h) is not periodic with

@@ -326,6 +326,14 @@ static double nearest_patch(const offset *f, const double p[3], double q[3], dou
   return take_nearer(f, p, q, &c);
 }
 
+/* The strict check of a local closest point q of p (signed distance sd),
+ * both in place: a nearer patch of H, also one just beyond the mesh's error
+ * away from q's own, is refined and taken when nearer. */
+static void strict_point(const offset *f, const double p[3], double q[3], double *sd) {
+  double d = fabs(*sd), d2 = nearest_patch(f, p, q, PATCH_TOL, 1);
+  if (d2 < d) *sd = *sd < 0 ? -d2 : d2;
+}
+
 /* The field's value from a closest point's signed distance sd (+ where
  * phi > 0) and the thickness T there (Tin: inside thickness, for sd < 0). */
 static double offset_value(const offset *f, double sd, double T, double Tin) {
@@ -552,15 +560,24 @@ int gr_offset_values(const gr_field *f_, size_t n, const double *p, double *q, d
    * T as well cost 40 % more template time on eq. (8) sheets and changed no
    * layer of the iwp sheet's measurement, doc/quality.md: not done.) */
   for (size_t i = 0; i < n && !rc; i++) {
-    double *qi = q + 3 * i;
+    double *qi = q + 3 * i, s0 = sd[i];
     if (isnan(qi[0]) || !(fabs(out[i]) < 2 * f->herr)) continue;
-    double d = fabs(sd[i]), d2 = nearest_patch(f, p + 3 * i, qi, PATCH_TOL, 1);
-    if (d2 < d) {
-      sd[i] = sd[i] < 0 ? -d2 : d2;
-      rc = values_at(f, 1, NULL, qi, sd + i, out + i, e);
-    }
+    strict_point(f, p + 3 * i, qi, sd + i);
+    if (sd[i] != s0) rc = values_at(f, 1, NULL, qi, sd + i, out + i, e);
   }
   return rc;
+}
+
+double gr_offset_herr(const gr_field *f_) {
+  const offset *f = gr_field_callback_data(f_, offset_eval);
+  return f ? f->herr : -1;
+}
+
+int gr_offset_strict(const gr_field *f_, const double p[3], double q[3], double *sd, gr_err *e) {
+  const offset *f = gr_field_callback_data(f_, offset_eval);
+  if (!f) return gr_fail(e, GR_EARG, "closest points need an offset field");
+  if (f->mode == GR_DIST_EXACT && !isnan(q[0])) strict_point(f, p, q, sd);
+  return GR_OK;
 }
 
 int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const double *y,

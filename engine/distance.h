@@ -84,6 +84,16 @@ int gr_offset_closest(const gr_field *f, size_t n, const double *x, const double
  * searched on H and replaces q and sd when found. */
 int gr_offset_values(const gr_field *f, size_t n, const double *p, double *q, double *sd,
                      double *out, gr_err *e);
+/* H's error bound of offset field f (half a mesh spacing, mm), or -1 when
+ * f is not one. */
+double gr_offset_herr(const gr_field *f);
+/* The strict check of gr_offset_values for one point p with closest point q
+ * (in place) and signed distance sd (in place): where a patch of H is
+ * nearer than q by more than 0.1 um (also one within twice the mesh's
+ * measured error, away from q's own patch), it is refined and taken when
+ * nearer. Depends on p, q and the surface only, not on T. Exact mode (a
+ * no-op in mesh mode or for q = NaN). */
+int gr_offset_strict(const gr_field *f, const double p[3], double q[3], double *sd, gr_err *e);
 /* f at n points, each closest point found by refining hints (nh per point,
  * 3 nh n values, mm; closest points of nearby points, e.g. the grid
  * neighbours) instead of searching the mesh: each hint is refined on its own
