@@ -129,9 +129,10 @@ static int node_hints(const near_ud *u, double x, double y, double *hi) {
  * jump (they lie on more than one patch of H). */
 static void node_predict(const near_ud *u, double x, double y, double pr[3]) {
   double fx = (x - u->lo[0]) / u->h, fy = (y - u->lo[1]) / u->h;
-  int i = (int)lround(fx), j = (int)lround(fy);
   pr[0] = pr[1] = pr[2] = NAN;
-  if (i < 1 || j < 1 || i > u->nx - 2 || j > u->ny - 2) return;
+  /* the nearest node (i, j) must have all eight neighbours */
+  if (!(fx >= 0.5 && fy >= 0.5 && fx < u->nx - 1.5 && fy < u->ny - 1.5)) return;
+  int i = (int)(fx + 0.5), j = (int)(fy + 0.5);
   const double *q[3][3]; /* q[a + 1][b + 1]: node (i + a, j + b) */
   for (int a = -1; a <= 1; a++)
     for (int b = -1; b <= 1; b++) {

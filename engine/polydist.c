@@ -25,7 +25,7 @@ static void pd_free(poly_dist *d) {
 
 /* Squared distance from (x, y) to edge p (ax ay bx by) and the nearest
  * point's parameter t along it. */
-static double edge_d2(const double *p, double x, double y, double *tpar) {
+static inline double edge_d2(const double *p, double x, double y, double *tpar) {
   double ex = p[2] - p[0], ey = p[3] - p[1], L2 = ex * ex + ey * ey;
   double t = L2 > 0 ? ((x - p[0]) * ex + (y - p[1]) * ey) / L2 : 0;
   if (t < 0) t = 0;
