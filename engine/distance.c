@@ -85,6 +85,21 @@ void gr_offset_uvw(const double q[3], const double c[3], const double L[3], doub
 /* T at n foot points q (global, mm) of the points p (NULL: q itself locates
  * the owning voxel when the field has none of its own), before any density
  * table. */
+/* u, v, w of the feet q (points s .. s + m - 1) relative to the voxels that
+ * own the points p (NULL: q). */
+static void feet_uvw(const offset *f, const double *const p[3], const double *qx, const double *qy, const double *qz,
+                     size_t s, size_t m, double *u, double *v, double *w) {
+  for (size_t i = 0; i < m; i++) {
+    double q[3] = {qx[s + i], qy[s + i], qz[s + i]}, c[3], r[3];
+    double pp[3] = {p ? p[0][s + i] : q[0], p ? p[1][s + i] : q[1], p ? p[2][s + i] : q[2]};
+    owner_centre(f, pp, c);
+    gr_offset_uvw(q, c, f->Lv, r);
+    u[i] = r[0];
+    v[i] = r[1];
+    w[i] = r[2];
+  }
+}
+
 static int thick_value(const offset *f, const gr_expr *x, size_t n, const double *const p[3], const double *qx,
                  const double *qy, const double *qz, double *out, gr_err *e) {
   if (!x && f->tfield) return gr_field_eval(f->tfield, n, qx, qy, qz, out, e);
@@ -93,19 +108,17 @@ static int thick_value(const offset *f, const gr_expr *x, size_t n, const double
     return GR_OK;
   }
   double u[256], v[256], w[256];
+  /* u, v, w only when T reads them (or for an error message, which names all six) */
+  int uvw = gr_expr_uses(x, 3) || gr_expr_uses(x, 4) || gr_expr_uses(x, 5);
   for (size_t s = 0; s < n; s += 256) {
     size_t m = n - s < 256 ? n - s : 256;
-    for (size_t i = 0; i < m; i++) {
-      double q[3] = {qx[s + i], qy[s + i], qz[s + i]}, c[3], r[3];
-      double pp[3] = {p ? p[0][s + i] : q[0], p ? p[1][s + i] : q[1], p ? p[2][s + i] : q[2]};
-      owner_centre(f, pp, c);
-      gr_offset_uvw(q, c, f->Lv, r);
-      u[i] = r[0];
-      v[i] = r[1];
-      w[i] = r[2];
-    }
+    if (uvw) feet_uvw(f, p, qx, qy, qz, s, m, u, v, w);
     const double *vars[6] = {qx + s, qy + s, qz + s, u, v, w};
     int rc = gr_expr_eval(x, m, vars, out + s, e);
+    if (rc && !uvw) {
+      feet_uvw(f, p, qx, qy, qz, s, m, u, v, w);
+      rc = gr_expr_eval(x, m, vars, out + s, e);
+    }
     if (rc) return rc;
   }
   return GR_OK;

@@ -429,6 +429,14 @@ TEST(thickness_errors) {
   o.thickness_expr = "0.5+w*w";  /* over L/2 = 1 near the cell faces */
   CHECK(gr_offset_field_new(&o, &e) == NULL && e.code == GR_EARG, "large expression accepted");
   CHECK(strstr(e.msg, "L/2") != NULL, "message '%s'", e.msg);
+  /* a NaN from an expression without u, v, w (which are then not computed
+   * for the evaluation): the message still gives the point's u, v, w, each
+   * in [-1, 1] */
+  o.thickness_expr = "0.1 + sqrt(x - 1)";
+  CHECK(gr_offset_field_new(&o, &e) == NULL && e.code == GR_ENUM, "NaN thickness accepted (%d)", e.code);
+  const char *um = strstr(e.msg, "u="), *vm = strstr(e.msg, "v="), *wm = strstr(e.msg, "w=");
+  double uu = um ? atof(um + 2) : NAN, vv = vm ? atof(vm + 2) : NAN, ww = wm ? atof(wm + 2) : NAN;
+  CHECK(strstr(e.msg, "gave nan") && fabs(uu) <= 1 && fabs(vv) <= 1 && fabs(ww) <= 1, "message '%s'", e.msg);
   o.thickness_expr = NULL;
   gr_field *g = gr_offset_field_new(&o, &e);
   CHECK(g != NULL, "valid options refused: %s", e.msg);
