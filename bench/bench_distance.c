@@ -19,7 +19,7 @@ static double uni(unsigned long long *s) {
 static gr_field *graded_p(gr_field *phi, int res, int mode, gr_err *e) {
   gr_offset_opts o = gr_offset_defaults();
   o.surface = phi;
-  o.cell = 2;
+  o.cell[0] = o.cell[1] = o.cell[2] = 2;
   for (int a = 0; a < 3; a++) { o.box_lo[a] = 0; o.box_hi[a] = 2; }
   o.res = res;
   o.mode = mode;
