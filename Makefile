@@ -75,7 +75,11 @@ ctests: $(CTESTS:%=build/tests/%) $(CTESTS:%=build/asan/tests/%) build/gradus-as
 
 test: deps
 	@$(MAKE) --no-print-directory test-run
-test-run: all ctests $(if $(FUZZ_HAVE),fuzz-build)
+# the benchmarks are built (not run) with the tests, so that an API change cannot leave one
+# uncompilable while make bench skips it
+BENCH_C   := $(wildcard bench/bench_*.c)
+BENCH_BIN := $(BENCH_C:bench/%.c=build/bench/%)
+test-run: all ctests $(BENCH_BIN) $(if $(FUZZ_HAVE),fuzz-build)
 	@bash tests/run.sh
 
 demo: deps
