@@ -633,6 +633,14 @@ static void small_sincos(double d, double *s, double *c) {
   *c = 1 - d2 / 2 * (1 - d2 / 12 * (1 - d2 / 30 * (1 - d2 / 56 * (1 - d2 / 90 * (1 - d2 / 132)))));
 }
 
+/* Phase a of sn, cs advanced by the angle d (the angle-addition rule). */
+static void phase_add(double *sn, double *cs, int a, double d) {
+  double sd, cd, s0 = sn[a], c0 = cs[a];
+  small_sincos(d, &sd, &cd);
+  sn[a] = s0 * cd + c0 * sd;
+  cs[a] = c0 * cd - s0 * sd;
+}
+
 int gr_field_hess_fd(const gr_field *f, const double p[3], double h, double *v, double g[3], double hs[3][3],
                      gr_err *e) {
   gr_field_at at;
@@ -645,12 +653,7 @@ int gr_field_move_grad(const gr_field *f, gr_field_at *at, const double dp[3], d
   if (!at->trig) return gr_field_eval_grad(f, 1, &at->p[0], &at->p[1], &at->p[2], v, &g[0], &g[1], &g[2], e);
   const double *w = f->w;
   double gl[3];
-  for (int a = 0; a < 3; a++) {
-    double sd, cd, s0 = at->sn[a], c0 = at->cs[a];
-    small_sincos(w[a] * dp[a], &sd, &cd);
-    at->sn[a] = s0 * cd + c0 * sd;
-    at->cs[a] = c0 * cd - s0 * sd;
-  }
+  for (int a = 0; a < 3; a++) phase_add(at->sn, at->cs, a, w[a] * dp[a]);
   *v = tpms_trig(f->surface, at->sn[0], at->cs[0], at->sn[1], at->cs[1], at->sn[2], at->cs[2], gl) - f->level;
   for (int c = 0; c < 3; c++) g[c] = w[c] * gl[c];
   if (!isfinite(*v) || first_bad(3, g, NULL, NULL) >= 0)
@@ -697,10 +700,8 @@ int gr_field_hess_fd_at(const gr_field *f, const double p[3], double h, double *
   }
   const double *w = f->w;
   for (int a = 0; a < 3; a++) {
-    double sd, cd, s2[3] = {at->sn[0], at->sn[1], at->sn[2]}, c2[3] = {at->cs[0], at->cs[1], at->cs[2]}, g2[3];
-    small_sincos(w[a] * h, &sd, &cd);
-    s2[a] = at->sn[a] * cd + at->cs[a] * sd;
-    c2[a] = at->cs[a] * cd - at->sn[a] * sd;
+    double s2[3] = {at->sn[0], at->sn[1], at->sn[2]}, c2[3] = {at->cs[0], at->cs[1], at->cs[2]}, g2[3];
+    phase_add(s2, c2, a, w[a] * h);
     tpms_trig(f->surface, s2[0], c2[0], s2[1], c2[1], s2[2], c2[2], g2);
     for (int c = 0; c < 3; c++) hs[a][c] = (w[c] * g2[c] - g[c]) / h;
   }
