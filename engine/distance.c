@@ -347,6 +347,14 @@ static void strict_point(const offset *f, const double p[3], double q[3], double
   if (d2 < d) *sd = *sd < 0 ? -d2 : d2;
 }
 
+/* The gradient g of the distance part of the value at p, from its closest
+ * point q and signed distance sd (T's own slope along H neglected; NaN on
+ * H). */
+static void dist_grad(const offset *f, const double p[3], const double q[3], double sd, double g[3]) {
+  double d = fabs(sd), sg = f->kind == GR_OFFSET_SHEET ? 1 : (f->side > 0 ? -1 : 1) * (sd < 0 ? -1 : 1);
+  for (int a = 0; a < 3; a++) g[a] = d > 1e-9 ? sg * (p[a] - q[a]) / d : NAN;
+}
+
 /* The field's value from a closest point's signed distance sd (+ where
  * phi > 0) and the thickness T there (Tin: inside thickness, for sd < 0). */
 static double offset_value(const offset *f, double sd, double T, double Tin) {
@@ -639,11 +647,7 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
         d = dist3(p, qi);
       }
       sd[i] = ph[i] > 0 ? d : -d;
-      if (grad) {
-        /* the distance's gradient (T's own slope along H neglected) */
-        double sg = f->kind == GR_OFFSET_SHEET ? 1 : (f->side > 0 ? -1 : 1) * (sd[i] < 0 ? -1 : 1);
-        for (int a = 0; a < 3; a++) grad[3 * (s + i) + a] = d > 1e-9 ? sg * (p[a] - qi[a]) / d : NAN;
-      }
+      if (grad) dist_grad(f, p, qi, sd[i], grad + 3 * (s + i));
     }
     if ((rc = values_at(f, m, pb, q, sd, out + s, e))) return rc;
   }
@@ -726,9 +730,7 @@ int gr_offset_eval_model(const gr_field *f_, size_t n, const double *x, const do
     for (size_t i = 0; i < k; i++) {
       size_t o = s + id[i];
       out[o] = vk[i];
-      if (!grad) continue;
-      double d = fabs(sd[i]), sg = f->kind == GR_OFFSET_SHEET ? 1 : (f->side > 0 ? -1 : 1) * (sd[i] < 0 ? -1 : 1);
-      for (int a = 0; a < 3; a++) grad[3 * o + a] = d > 1e-9 ? sg * (pb[3 * i + a] - q[3 * i + a]) / d : NAN;
+      if (grad) dist_grad(f, pb + 3 * i, q + 3 * i, sd[i], grad + 3 * o);
     }
   }
   return GR_OK;
