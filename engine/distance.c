@@ -339,14 +339,6 @@ static double nearest_patch(const offset *f, const double p[3], double q[3], dou
   return take_nearer(f, p, q, &c);
 }
 
-/* The strict check of a local closest point q of p (signed distance sd),
- * both in place: a nearer patch of H, also one just beyond the mesh's error
- * away from q's own, is refined and taken when nearer. */
-static void strict_point(const offset *f, const double p[3], double q[3], double *sd) {
-  double d = fabs(*sd), d2 = nearest_patch(f, p, q, PATCH_TOL, 1);
-  if (d2 < d) *sd = *sd < 0 ? -d2 : d2;
-}
-
 /* The gradient g of the distance part of the value at p, from its closest
  * point q and signed distance sd (T's own slope along H neglected; NaN on
  * H). */
@@ -568,25 +560,10 @@ static int values_at(const offset *f, size_t n, const double *p, const double *q
   return GR_OK;
 }
 
-int gr_offset_values(const gr_field *f_, size_t n, const double *p, double *q, double *sd,
-                     double *out, gr_err *e) {
+int gr_offset_values(const gr_field *f_, size_t n, double *q, double *sd, double *out, gr_err *e) {
   const offset *f = gr_field_callback_data(f_, offset_eval);
   if (!f) return gr_fail(e, GR_EARG, "offset values need an offset field");
-  int rc = values_at(f, n, NULL, q, sd, out, e);
-  if (rc || !p || f->mode != GR_DIST_EXACT) return rc;
-  /* gr_offset_closest's local answers may be up to 2 herr too far (its
-   * tolerance, H's error): where that could decide the sign, check strictly
-   * for a nearer patch. (A graded T can differ between the two patches and
-   * flip the sign of larger |g| too; checking |g| < 2 herr + the spread of
-   * T as well cost 40 % more template time on eq. (8) sheets and changed no
-   * layer of the iwp sheet's measurement, doc/quality.md: not done.) */
-  for (size_t i = 0; i < n && !rc; i++) {
-    double *qi = q + 3 * i, s0 = sd[i];
-    if (isnan(qi[0]) || !(fabs(out[i]) < 2 * f->herr)) continue;
-    strict_point(f, p + 3 * i, qi, sd + i);
-    if (sd[i] != s0) rc = values_at(f, 1, NULL, qi, sd + i, out + i, e);
-  }
-  return rc;
+  return values_at(f, n, NULL, q, sd, out, e);
 }
 
 double gr_offset_herr(const gr_field *f_) {
@@ -597,7 +574,9 @@ double gr_offset_herr(const gr_field *f_) {
 int gr_offset_strict(const gr_field *f_, const double p[3], double q[3], double *sd, gr_err *e) {
   const offset *f = gr_field_callback_data(f_, offset_eval);
   if (!f) return gr_fail(e, GR_EARG, "closest points need an offset field");
-  if (f->mode == GR_DIST_EXACT && !isnan(q[0])) strict_point(f, p, q, sd);
+  if (f->mode != GR_DIST_EXACT || isnan(q[0])) return GR_OK;
+  double d = fabs(*sd), d2 = nearest_patch(f, p, q, PATCH_TOL, 1);
+  if (d2 < d) *sd = *sd < 0 ? -d2 : d2;
   return GR_OK;
 }
 

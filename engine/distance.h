@@ -78,17 +78,15 @@ int gr_offset_closest(const gr_field *f, size_t n, const double *x, const double
 /* Values of offset field f from closest points and signed distances (from
  * gr_offset_closest of any offset field of the same surface): g = d - T(q)
  * (sheet) or sd - T(q) (network); q = NaN gives a bound of the right sign.
- * p (3n, mm; or NULL): the points themselves; then, in exact mode, where
- * |g| is within twice H's error bound, a patch of the surface nearer than q
- * (gr_offset_closest accepts local answers up to that much too long) is
- * searched on H and replaces q and sd when found. */
-int gr_offset_values(const gr_field *f, size_t n, const double *p, double *q, double *sd,
-                     double *out, gr_err *e);
+ * gr_offset_closest accepts local answers up to twice H's error bound
+ * (gr_offset_herr) too long: where |g| is within that, the caller checks q
+ * with gr_offset_strict and evaluates again. */
+int gr_offset_values(const gr_field *f, size_t n, double *q, double *sd, double *out, gr_err *e);
 /* H's error bound of offset field f (half a mesh spacing, mm), or -1 when
  * f is not one. */
 double gr_offset_herr(const gr_field *f);
-/* The strict check of gr_offset_values for one point p with closest point q
- * (in place) and signed distance sd (in place): where a patch of H is
+/* The strict check for one point p with closest point q (in place) and
+ * signed distance sd (in place): where a patch of H is
  * nearer than q by more than 0.1 um (also one within twice the mesh's
  * measured error, away from q's own patch), it is refined and taken when
  * nearer. Depends on p, q and the surface only, not on T. Exact mode (a

@@ -651,10 +651,15 @@ TEST(thick_sheet_nearest_patch) {
     if (pass) for (int i = 0; i < N / 2; i++) { double t = y[i]; y[i] = y[N - 1 - i]; y[N - 1 - i] = t; t = truth[i]; truth[i] = truth[N - 1 - i]; truth[N - 1 - i] = t; }
     if (gr_offset_closest(g, N, x, y, z, 1, q, sd, &e)) { CHECK(0, "%s", e.msg); break; }
     for (int i = 0; i < N; i++) raw = fmax(raw, fabs(fabs(sd[i]) - truth[i]));
-    /* the values near g = 0 (all of these: |g| < 36 um) from the points */
-    double P[3 * N];
-    for (int i = 0; i < N; i++) P[3 * i] = x[i], P[3 * i + 1] = y[i], P[3 * i + 2] = z[i];
-    if (gr_offset_values(g, N, P, q, sd, v, &e)) { CHECK(0, "%s", e.msg); break; }
+    /* the values near g = 0 (all of these: |g| < 36 um), with the strict
+     * check where |g| < 2 herr, as the templates' slicer makes it */
+    if (gr_offset_values(g, N, q, sd, v, &e)) { CHECK(0, "%s", e.msg); break; }
+    for (int i = 0; i < N; i++) {
+      double P[3] = {x[i], y[i], z[i]}, s0 = sd[i];
+      if (!(fabs(v[i]) < 2 * gr_offset_herr(g))) continue;
+      if (gr_offset_strict(g, P, q + 3 * i, sd + i, &e) ||
+          (sd[i] != s0 && gr_offset_values(g, 1, q + 3 * i, sd + i, v + i, &e))) { CHECK(0, "%s", e.msg); break; }
+    }
     for (int i = 0; i < N; i++) worst[pass] = fmax(worst[pass], fmax(fabs(v[i] + 0.28 - truth[i]), fabs(fabs(sd[i]) - truth[i])));
   }
   /* a hint from the mirror point's foot (the other patch) */
