@@ -136,6 +136,10 @@ static int thick(const offset *f, const gr_expr *x, size_t n, const double *cons
 
 static int exact_newton(const offset *f, const double p[3], double q[3]);
 
+static double dist3(const double p[3], const double q[3]) {
+  return sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]));
+}
+
 /* Newton projection of x onto phi = 0 (a few steps); 0 if it fails. */
 static int project(const offset *f, double x[3]) {
   gr_err e;
@@ -173,11 +177,17 @@ static int settle(const offset *f, const double p[3], const double q0[3], double
  * plane. Keeps the mesh point when it does not converge. The alternation
  * converges linearly, slowly where d times the curvature nears 1 (P
  * necks): 12 rounds left 1e-5 mm there, 40 reach 1e-9 mm (most points stop
- * after a few rounds). */
+ * after a few rounds). Where the surface curves away from p more sharply
+ * than 1/d a full move overshoots (each round's error grows by d kappa:
+ * thick iwp sheets, p near the mirror planes), so a move that leaves the
+ * projected point farther from p than the last one is taken back and
+ * halved: every round then brings the point nearer, towards a local
+ * minimum of the distance (without it, a point 3 um too far ended the
+ * search there). */
 static int exact_refine(const offset *f, const double p[3], double q[3]) {
-  double x[3] = {q[0], q[1], q[2]};
+  double x[3] = {q[0], q[1], q[2]}, xb[3] = {q[0], q[1], q[2]}, tb[3] = {0, 0, 0}, db = INFINITY, alpha = 1;
   int conv = 0;
-  for (int it = 0; it < 40; it++) {
+  for (int it = 0; it < 60; it++) {
     double v, gx, gy, gz;
     gr_err e;
     for (int k = 0; k < 3; k++) {
@@ -189,6 +199,13 @@ static int exact_refine(const offset *f, const double p[3], double q[3]) {
       x[2] -= v * gz / g2;
       if (fabs(v) < 1e-14) break;
     }
+    double d = dist3(p, x);
+    if (d > db) { /* overshot: back to the best point, half the move */
+      if (alpha < 1e-3) break;
+      alpha *= 0.5;
+      for (int a = 0; a < 3; a++) x[a] = xb[a] + alpha * tb[a];
+      continue;
+    }
     if (gr_field_grad(f->phi, 1, &x[0], &x[1], &x[2], &gx, &gy, &gz, &e)) return 0;
     double gn = sqrt(gx * gx + gy * gy + gz * gz);
     if (!(gn > 0)) return 0;
@@ -197,9 +214,14 @@ static int exact_refine(const offset *f, const double p[3], double q[3]) {
     double rn = gr_dot3(r, n);
     double t[3] = {r[0] - rn * n[0], r[1] - rn * n[1], r[2] - rn * n[2]};
     double tl = sqrt(gr_dot3(t, t));
-    for (int a = 0; a < 3; a++) x[a] += t[a];
     if (tl < 1e-12) { conv = 1; break; }
+    memcpy(xb, x, sizeof x);
+    memcpy(tb, t, sizeof t);
+    db = d;
+    alpha = fmin(1, 2 * alpha);
+    for (int a = 0; a < 3; a++) x[a] += alpha * t[a];
   }
+  if (!conv) memcpy(x, xb, sizeof x);
   if (!conv && !settle(f, p, q, x)) return 0;
   double dq = sqrt((x[0] - q[0]) * (x[0] - q[0]) + (x[1] - q[1]) * (x[1] - q[1]) + (x[2] - q[2]) * (x[2] - q[2]));
   if (!(isfinite(dq) && dq < 0.25 * f->L)) return 0;
@@ -286,10 +308,6 @@ static void closest_h(const offset *f, const double p[3], double maxd, gr_hit *h
   double pp[3] = {p[0] - f->shift[0], p[1] - f->shift[1], p[2] - f->shift[2]};
   gr_bvh_closest(f->bvh, pp, maxd, h);
   for (int a = 0; a < 3; a++) h->q[a] += f->shift[a];
-}
-
-static double dist3(const double p[3], const double q[3]) {
-  return sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]));
 }
 
 /* A local search for the closest point (Newton from a neighbour's or a

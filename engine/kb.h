@@ -50,10 +50,14 @@ void gr_sha256_hex(const void *data, size_t n, char out[65]);
  * window had been taken for solid, 2026-11-25), 8 since closest-point
  * Newton steps stop at the error their convergence rate predicts (below
  * 1e-7 L; contours move by nanometres, hatch ends by up to 0.8 um where a
- * hatch line grazes the region's border, 2026-11-25). A template whose
+ * hatch line grazes the region's border, 2026-11-25), 9 since crossings and
+ * chords come from the table's predicted closest points (2026-11-25), 10
+ * since a closest-point refinement that overshoots (the surface curving away
+ * from the point more sharply than 1/d) takes its move back and halves it
+ * (contours move by up to 0.1 um on thick iwp sheets, 2026-11-27). A template whose
  * signature begins otherwise was built under an older rule: its key is never
  * asked for again, `gradus kb list` marks it stale and prune removes it. */
-#define GR_TEMPLATE_GEOMETRY "{gradus_template: 9, grading: voxel-owned,"
+#define GR_TEMPLATE_GEOMETRY "{gradus_template: 10, grading: voxel-owned,"
 /* 1 when a signature is a Gradus template's of an older engine geometry
  * (it begins with "{gradus_template: " but not with GR_TEMPLATE_GEOMETRY). */
 int gr_kb_stale(const char *signature);
