@@ -174,7 +174,7 @@ static int h_verify(lua_State *L) {
   gr_err e;
   gr_err_clear(&e);
   if (gr_verify_layer(sec, l, &o, &r, &e)) return gr_lua_error(L, &e);
-  lua_createtable(L, 0, 9);
+  lua_createtable(L, 0, 14);
   lua_pushnumber(L, r.pore); lua_setfield(L, -2, "pore");
   lua_pushnumber(L, r.overmelt); lua_setfield(L, -2, "overmelt");
   lua_pushnumber(L, r.max_dev); lua_setfield(L, -2, "max_dev");
@@ -185,6 +185,8 @@ static int h_verify(lua_State *L) {
   lua_pushinteger(L, (lua_Integer)r.thin_points); lua_setfield(L, -2, "thin_points");
   lua_pushinteger(L, (lua_Integer)r.thin_scans); lua_setfield(L, -2, "thin_scans");
   lua_pushnumber(L, r.thin_length); lua_setfield(L, -2, "thin_length");
+  lua_pushnumber(L, r.hatch_length); lua_setfield(L, -2, "hatch_length");
+  lua_pushnumber(L, r.hatch_outside); lua_setfield(L, -2, "hatch_outside");
   lua_pushinteger(L, r.nx); lua_setfield(L, -2, "nx");
   lua_pushinteger(L, r.ny); lua_setfield(L, -2, "ny");
   return 1;

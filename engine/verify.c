@@ -84,6 +84,97 @@ static double dist_boundary(const gr_rings *s, double x, double y) {
   return sqrt(best);
 }
 
+/* The x of every ring edge crossing the row y (half-open in y, so that a
+ * vertex on the row counts once), into xs; returns their number. */
+static size_t row_crossings(const gr_rings *s, double y, double *xs) {
+  size_t n = 0;
+  for (size_t i = 0; i < s->nrings; i++) {
+    const double *p = gr_ring_xy(s, i);
+    size_t m = gr_ring_len(s, i);
+    for (size_t a = 0, c = m - 1; a < m; c = a++) {
+      double ya = p[2 * a + 1], yc = p[2 * c + 1];
+      if ((ya <= y && y < yc) || (yc <= y && y < ya))
+        xs[n++] = p[2 * a] + (y - ya) * (p[2 * c] - p[2 * a]) / (yc - ya);
+    }
+  }
+  return n;
+}
+
+/* Even-odd: is (x, y) inside the section? xs: scratch for npts values. */
+static int inside(const gr_rings *s, double x, double y, double *xs) {
+  size_t n = row_crossings(s, y, xs), left = 0;
+  for (size_t k = 0; k < n; k++) left += xs[k] < x;
+  return (int)(left & 1);
+}
+
+/* Clip segment A-B to the box [lo, hi] (Liang-Barsky): the parameters
+ * t0 <= t1 of the part inside, or 0 when none is. */
+static int clip_segment(const double A[2], const double B[2], const double lo[2], const double hi[2],
+                        double *t0, double *t1) {
+  *t0 = 0;
+  *t1 = 1;
+  for (int c = 0; c < 2; c++) {
+    double d = B[c] - A[c];
+    double p[2] = {-d, d}, q[2] = {A[c] - lo[c], hi[c] - A[c]};
+    for (int k = 0; k < 2; k++) {
+      if (p[k] == 0) {
+        if (q[k] < 0) return 0;
+        continue;
+      }
+      double t = q[k] / p[k];
+      if (p[k] < 0) *t0 = fmax(*t0, t);
+      else *t1 = fmin(*t1, t);
+    }
+  }
+  return *t0 < *t1;
+}
+
+/* Length of segment A-B (the part in the clip box, if any) and of its parts
+ * outside the section: the segment is cut at every crossing of a ring edge,
+ * each piece's midpoint decides (exact, no raster). ts, xs: scratch room for
+ * npts + 2 values each. */
+static void segment_outside(const gr_rings *s, const gr_verify_opts *o, const double A[2], const double B[2],
+                            double *ts, double *xs, double *len, double *out) {
+  double t0 = 0, t1 = 1;
+  if (o->clip && !clip_segment(A, B, o->clip_lo, o->clip_hi, &t0, &t1)) return;
+  double dx = B[0] - A[0], dy = B[1] - A[1], L = hypot(dx, dy);
+  size_t n = 0;
+  ts[n++] = t0;
+  for (size_t i = 0; i < s->nrings; i++) {
+    const double *p = gr_ring_xy(s, i);
+    size_t m = gr_ring_len(s, i);
+    for (size_t a = 0, c = m - 1; a < m; c = a++) {
+      double ex = p[2 * a] - p[2 * c], ey = p[2 * a + 1] - p[2 * c + 1];
+      double den = dx * ey - dy * ex;
+      if (den == 0) continue; /* parallel: the pieces' midpoints decide */
+      double wx = p[2 * c] - A[0], wy = p[2 * c + 1] - A[1];
+      double t = (wx * ey - wy * ex) / den, u = (wx * dy - wy * dx) / den;
+      if (t > t0 && t < t1 && u >= 0 && u <= 1) ts[n++] = t;
+    }
+  }
+  ts[n++] = t1;
+  qsort(ts, n, sizeof *ts, cmp_double);
+  *len += (t1 - t0) * L;
+  for (size_t k = 0; k + 1 < n; k++) {
+    double tm = 0.5 * (ts[k] + ts[k + 1]);
+    if (ts[k + 1] > ts[k] && !inside(s, A[0] + tm * dx, A[1] + tm * dy, xs)) *out += (ts[k + 1] - ts[k]) * L;
+  }
+}
+
+/* Hatch length and its part outside the section, over every hatch vector
+ * (GR_HATCH blocks: segments and zigzag polylines). */
+static void hatch_outside(const gr_rings *s, const gr_layer *l, const gr_verify_opts *o, double *ts,
+                          double *xs, gr_verify_result *r) {
+  for (size_t bi = 0; bi < l->nb; bi++) {
+    const gr_block *B = &l->b[bi];
+    if (B->kind != GR_HATCH) continue;
+    const double *p = l->xy + 2 * B->start;
+    size_t step = B->shape == GR_SEGMENTS ? 2 : 1;
+    for (size_t k = 0; k + 1 < B->n; k += step)
+      segment_outside(s, o, p + 2 * k, p + 2 * k + 2, ts, xs, &r->hatch_length, &r->hatch_outside);
+  }
+}
+
 int gr_verify_layer(const gr_rings *section, const gr_layer *l, const gr_verify_opts *o,
                     gr_verify_result *r, gr_err *e) {
   if (!section || !l || !o || !r) return gr_fail(e, GR_EARG, "verify: NULL argument");
@@ -120,21 +211,12 @@ int gr_verify_layer(const gr_rings *section, const gr_layer *l, const gr_verify_
   r->nx = nx;
   r->ny = ny;
   unsigned char *img = calloc((size_t)nx * ny, 1);
-  double *xs = malloc((section->npts + 1) * sizeof *xs);
+  double *xs = malloc(2 * (section->npts + 2) * sizeof *xs);
   if (!img || !xs) { free(img); free(xs); return gr_fail(e, GR_EMEM, "verify: out of memory (%d x %d pixels)", nx, ny); }
   /* solid: even-odd scanline over every ring edge */
   for (int j = 0; j < ny; j++) {
     double y = lo[1] + (j + 0.5) * px;
-    size_t n = 0;
-    for (size_t i = 0; i < section->nrings; i++) {
-      const double *p = gr_ring_xy(section, i);
-      size_t m = gr_ring_len(section, i);
-      for (size_t a = 0, c = m - 1; a < m; c = a++) {
-        double ya = p[2 * a + 1], yc = p[2 * c + 1];
-        if ((ya <= y && y < yc) || (yc <= y && y < ya))
-          xs[n++] = p[2 * a] + (y - ya) * (p[2 * c] - p[2 * a]) / (yc - ya);
-      }
-    }
+    size_t n = row_crossings(section, y, xs);
     qsort(xs, n, sizeof *xs, cmp_double);
     for (size_t k = 0; k + 1 < n; k += 2) fill_row(img + (size_t)j * nx, nx, lo[0], px, xs[k], xs[k + 1], 1);
   }
@@ -193,6 +275,7 @@ int gr_verify_layer(const gr_rings *section, const gr_layer *l, const gr_verify_
   r->pore = solid ? (double)pore / (double)solid : 0;
   r->overmelt = solid ? (double)over / (double)solid : (melt ? INFINITY : 0);
   r->mean_dev = r->contour_points ? dsum / (double)r->contour_points : 0;
+  hatch_outside(section, l, o, xs, xs + section->npts + 2, r);
   free(img);
   free(xs);
   return GR_OK;

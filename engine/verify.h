@@ -36,6 +36,9 @@ typedef struct gr_verify_result {
                          the deviation: they follow a wall's middle, not b */
   size_t thin_scans;  /* thin-wall centre lines with a point counted */
   double thin_length; /* their length from counted points, mm */
+  double hatch_length;  /* hatch vectors' length (inside the clip box, if any), mm */
+  double hatch_outside; /* the part of it outside the section, mm (exact: the
+                           vectors cut at every ring edge they cross) */
   int nx, ny;         /* raster size, pixels */
 } gr_verify_result;
 
@@ -43,8 +46,10 @@ typedef struct gr_verify_result {
  * even-odd). Deviation of a contour point is the distance to the nearest
  * expected level b + i*spacing, its distance to the section boundary being
  * exact (nearest ring edge). Thin-wall centre lines (dir GR_DIR_THIN) are
- * counted apart (thin_*) and have no deviation. With clip, points are counted
- * inside the clip box (contour points 2 tracks inside it). */
+ * counted apart (thin_*) and have no deviation. Hatch vectors are measured
+ * exactly for the length they run outside the section (hatch_outside). With
+ * clip, points are counted inside the clip box (contour points 2 tracks
+ * inside it), and hatch vectors for their part inside it. */
 int gr_verify_layer(const gr_rings *section, const gr_layer *l,
                     const gr_verify_opts *o, gr_verify_result *r, gr_err *e);
 

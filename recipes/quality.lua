@@ -14,6 +14,8 @@
 -- block, two on each side of an inner face) are reported apart ("face"):
 --   pore     = solid area left unmelted / solid area (melt track width d), in the middle voxel
 --   overmelt = melted area outside the solid / solid area
+--   hatch out = hatch length outside the solid / hatch length, in the middle voxel
+--              (exact: each vector cut where it crosses the true section's boundary)
 --   dev      = | in-plane distance of each contour point of the middle voxel to the
 --              true section boundary - b | (exact boundary, steps included; max, p99, mean)
 --   thin     = thin-wall centre lines (slivers narrower than 2b): scans and length,
@@ -89,7 +91,7 @@ for _, surface in ipairs(list(surfaces)) do
         end
         return fields[k]
       end
-      local function blank() return { pore = 0, over = 0, dev = 0, p99 = 0, devsum = 0, npts = 0, thin = 0, thin_length = 0, layers = 0 } end
+      local function blank() return { pore = 0, over = 0, hout = 0, dev = 0, p99 = 0, devsum = 0, npts = 0, thin = 0, thin_length = 0, layers = 0 } end
       local worst = { interior = blank(), face = blank() }
       for _, g in ipairs(keep) do
         local layer = kept[g]
@@ -109,6 +111,8 @@ for _, surface in ipairs(list(surfaces)) do
         w.layers = w.layers + 1
         w.pore = math.max(w.pore, r.pore)
         w.over = math.max(w.over, r.overmelt)
+        r.hatch_out = r.hatch_length > 0 and r.hatch_outside / r.hatch_length or 0
+        w.hout = math.max(w.hout, r.hatch_out)
         w.dev = math.max(w.dev, r.max_dev)
         w.p99 = math.max(w.p99, r.p99_dev)
         w.devsum = w.devsum + r.mean_dev * r.contour_points
@@ -116,19 +120,19 @@ for _, surface in ipairs(list(surfaces)) do
         w.thin = w.thin + r.thin_scans
         w.thin_length = w.thin_length + r.thin_length
         if per_layer then
-          print(("  layer %3d%s  pore %.4f%%  overmelt %.4f%%  dev max %.3f um p99 %.3f um  thin %d (%.3f mm)")
-            :format(g, near_face(g) and "*" or " ", 100 * r.pore, 100 * r.overmelt, r.max_dev * 1000, r.p99_dev * 1000,
+          print(("  layer %3d%s  pore %.4f%%  overmelt %.4f%%  hatch out %.4f%%  dev max %.3f um p99 %.3f um  thin %d (%.3f mm)")
+            :format(g, near_face(g) and "*" or " ", 100 * r.pore, 100 * r.overmelt, 100 * r.hatch_out, r.max_dev * 1000, r.p99_dev * 1000,
               r.thin_scans, r.thin_length))
         end
       end
       for _, where in ipairs { "interior", "face" } do
         local w = worst[where]
         rows[#rows + 1] = { surface = surface, kind = kind, mode = mode, grading = grading, layers = where, checked = w.layers, pore_max = w.pore,
-          overmelt_max = w.over, dev_max_um = w.dev * 1000, dev_p99_um = w.p99 * 1000, dev_mean_um = w.npts > 0 and w.devsum / w.npts * 1000 or 0,
+          overmelt_max = w.over, hatch_outside_max = w.hout, dev_max_um = w.dev * 1000, dev_p99_um = w.p99 * 1000, dev_mean_um = w.npts > 0 and w.devsum / w.npts * 1000 or 0,
           thin_scans = w.thin, thin_length = w.thin_length }
         local r = rows[#rows]
-        print(("%-10s %-8s %-6s %-7s %-8s layers %3d  pore max %.4f%%  overmelt max %.4f%%  contour dev max %.3f um p99 %.3f um mean %.3f um  thin %d (%.2f mm)")
-          :format(surface, kind, mode, grading, where, r.checked, 100 * r.pore_max, 100 * r.overmelt_max, r.dev_max_um,
+        print(("%-10s %-8s %-6s %-7s %-8s layers %3d  pore max %.4f%%  overmelt max %.4f%%  hatch out max %.4f%%  contour dev max %.3f um p99 %.3f um mean %.3f um  thin %d (%.2f mm)")
+          :format(surface, kind, mode, grading, where, r.checked, 100 * r.pore_max, 100 * r.overmelt_max, 100 * r.hatch_outside_max, r.dev_max_um,
             r.dev_p99_um, r.dev_mean_um, r.thin_scans, r.thin_length))
       end
     end

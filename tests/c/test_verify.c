@@ -173,6 +173,42 @@ TEST(bad_input) {
   gr_rings_free(r);
 }
 
+/* Hatch length outside the section, exact: a unit square with a round hole
+ * of radius 0.2 at its centre; vectors across it, one along y through the
+ * hole, a zigzag polyline leaving and re-entering; with a clip box only the
+ * part inside it counts. */
+TEST(hatch_outside_exact) {
+  gr_rings *r = rect(0, 0, 1, 1);
+  add_circle(r, 0.5, 0.5, 0.2, 4000, 0);
+  double chord = 0.4; /* the 4000-gon has a vertex on each axis: its chord along x = 0.5 is 0.4 */
+  gr_layer *l = gr_layer_new(0);
+  gr_layer_add_segment(l, GR_HATCH, 0, -0.5, 0.1, 1.5, 0.1); /* 2 long, 1 outside */
+  gr_layer_add_segment(l, GR_HATCH, 0, 0.5, 0.05, 0.5, 0.95); /* 0.9 long, the hole's chord outside */
+  gr_layer_add_segment(l, GR_HATCH, 0, 0.05, 0.9, 0.95, 0.9); /* inside */
+  double zig[8] = {0.1, 0.2, 0.1, -0.3, 0.2, -0.3, 0.2, 0.2}; /* 0.5 + 0.1 + 0.5: 0.3 + 0.1 + 0.3 out */
+  gr_layer_add(l, GR_OPEN, GR_HATCH, 0, 2, zig, 4);
+  double ctr[10] = {-1, -1, 2, -1, 2, 2, -1, 2, -1, -1}; /* a contour: not hatch, not counted */
+  gr_layer_add(l, GR_CLOSED, GR_CONTOUR, 0, 1, ctr, 5);
+  gr_verify_opts vo = gr_verify_defaults();
+  vo.track = 0.05;
+  gr_verify_result v;
+  gr_err e;
+  CHECK(gr_verify_layer(r, l, &vo, &v, &e) == GR_OK, "%s", e.msg);
+  CHECK_NEAR(v.hatch_length, 2 + 0.9 + 0.9 + 1.1, 1e-12);
+  CHECK_NEAR(v.hatch_outside, 1 + chord + 0.7, 1e-9);
+  vo.clip = 1; /* x in [0, 0.5], y in [0, 1] */
+  vo.clip_lo[0] = vo.clip_lo[1] = 0;
+  vo.clip_hi[0] = 0.5;
+  vo.clip_hi[1] = 1;
+  CHECK(gr_verify_layer(r, l, &vo, &v, &e) == GR_OK, "%s", e.msg);
+  /* 0.5 + 0.9 (the vertical one lies on the clip border) + 0.45 + the
+   * zigzag's legs above y = 0 (0.2 + 0.2; its bottom leg is outside the box) */
+  CHECK_NEAR(v.hatch_length, 0.5 + 0.9 + 0.45 + 0.4, 1e-12);
+  CHECK_NEAR(v.hatch_outside, chord, 1e-9);
+  gr_layer_free(l);
+  gr_rings_free(r);
+}
+
 int main(void) {
   RUN(disc_properly_hatched);
   RUN(disc_default_offset);
@@ -180,5 +216,6 @@ int main(void) {
   RUN(vector_outside_overmelts);
   RUN(contour_deviation);
   RUN(bad_input);
+  RUN(hatch_outside_exact);
   DONE();
 }

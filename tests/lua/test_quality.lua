@@ -1,7 +1,7 @@
 -- The quality targets (issue: direct slicing, hatching): on graded P and
 -- gyroid sheets placed through the knowledge-base pipeline, every checked
 -- layer of the middle voxel of a 3 x 3 block has pore < 0.5 %, overmelt < 1 %
--- of the solid area, and contour points within 1 um of the true section
+-- of the solid area, hatch length outside the solid <= 0.1 %, and contour points within 1 um of the true section
 -- boundary offset by b (exact mode). The truth is the graded offset field
 -- of the whole block sliced directly, on a 4x finer grid.
 local t = require "gradus.testing"
@@ -26,6 +26,9 @@ local function check(surface, thickness, layers)
     t.ok(r.pore < 0.005, ("%s layer %d: pore %.4f >= 0.5%%"):format(surface, g, r.pore))
     t.ok(r.overmelt < 0.01, ("%s layer %d: overmelt %.4f >= 1%%"):format(surface, g, r.overmelt))
     t.ok(r.contour_points > 50, "contour points measured")
+    t.ok(r.hatch_length > 1, ("%s layer %d: hatch length %.3f mm measured"):format(surface, g, r.hatch_length))
+    t.ok(r.hatch_outside <= 0.001 * r.hatch_length, ("%s layer %d: hatch outside the solid %.3g mm of %.3f mm >= 0.1%%")
+      :format(surface, g, r.hatch_outside, r.hatch_length))
     t.ok(r.max_dev < 1e-3, ("%s layer %d: contour deviation %.3g mm >= 1 um"):format(surface, g, r.max_dev))
   end
 end
