@@ -86,10 +86,11 @@ function M.edges(voxels, z, window, cell, opts)
   return E, stats
 end
 
---- M.deviations(layer, E, b, box) -> sorted list of | distance - b | (mm) of
--- the points of the layer's contours (thin-wall lines excluded) to the
--- segments E; box = {x0, y0, x1, y1}: only points inside it (optional).
-function M.deviations(layer, E, b, box)
+--- M.points(layer, E, b, box) -> list of {x, y, dev}: for every point of the
+-- layer's contours (thin-wall lines excluded), optionally only those inside
+-- box = {x0, y0, x1, y1}, its distance to the segments E minus b (mm, signed:
+-- negative where the boundary is nearer than b).
+function M.points(layer, E, b, box)
   local h = 0.05
   local grid = {}
   local function key(i, j) return i * 1000003 + j end
@@ -105,7 +106,7 @@ function M.deviations(layer, E, b, box)
     end
   end
   local reach = math.ceil(3 * b / h) + 1
-  local devs = {}
+  local pts = {}
   for _, bk in ipairs(layer:blocks()) do
     if bk.kind == "contour" and not bk.thin then
       local P = bk.points
@@ -126,13 +127,81 @@ function M.deviations(layer, E, b, box)
               end
             end
           end
-          devs[#devs + 1] = math.abs(math.sqrt(best) - b)
+          pts[#pts + 1] = { px, py, math.sqrt(best) - b }
         end
       end
     end
   end
+  return pts
+end
+
+--- M.deviations(layer, E, b, box) -> sorted list of | distance - b | (mm) of
+-- the points of M.points.
+function M.deviations(layer, E, b, box)
+  local devs = {}
+  for _, q in ipairs(M.points(layer, E, b, box)) do devs[#devs + 1] = math.abs(q[3]) end
   table.sort(devs)
   return devs
+end
+
+-- the voxel whose square holds (x, y) (x in [lo, hi), y in [lo, hi))
+local function owner(voxels, x, y)
+  for _, v in ipairs(voxels) do
+    if x >= v.lo[1] and x < v.hi[1] and y >= v.lo[2] and y < v.hi[2] then return v end
+  end
+end
+
+--- M.local_deviation(voxels, z, x, y, b [, opts]) -> distance - b (mm), found:
+-- the distance from (x, y) to the nearest void (field > 0 of the voxel whose
+-- square holds the point) found on a grid of step opts.h (default 1e-4 mm)
+-- over the disc of radius b + opts.reach (default 0.002 mm), bisected on the
+-- segment to it (to 1e-6 mm). Independent of any slicer: where the field is
+-- nearly flat at zero (a crease of the sheet's distance along the medial
+-- surface just touching zero), a slicer's boundary is ill-conditioned, this
+-- is not. found = false when no void lies within the disc (then the result is
+-- opts.reach, a lower bound). Cost: about (2 (b + reach) / h)^2 evaluations.
+function M.local_deviation(voxels, z, x, y, b, opts)
+  opts = opts or {}
+  local h, reach = opts.h or 1e-4, opts.reach or 0.002
+  local R = b + reach
+  local n = math.floor(R / h)
+  local byv = {}
+  for j = -n, n do
+    for i = -n, n do
+      if i * i + j * j <= n * n then
+        local px, py = x + i * h, y + j * h
+        local v = owner(voxels, px, py)
+        if v then
+          local t = byv[v]
+          if not t then t = { xs = {}, ys = {}, zs = {} }; byv[v] = t end
+          local k = #t.xs + 1
+          t.xs[k], t.ys[k], t.zs[k] = px, py, z
+        end
+      end
+    end
+  end
+  local best, bx, by = math.huge, nil, nil
+  for v, t in pairs(byv) do
+    local f = v.field:eval_many(t.xs, t.ys, t.zs)
+    for k = 1, #f do
+      if f[k] > 0 then
+        local dd = (t.xs[k] - x) ^ 2 + (t.ys[k] - y) ^ 2
+        if dd < best then best, bx, by = dd, t.xs[k], t.ys[k] end
+      end
+    end
+  end
+  if not bx then return reach, false end
+  local function void(s)
+    local px, py = x + s * (bx - x), y + s * (by - y)
+    local v = owner(voxels, px, py)
+    return v and v.field:eval(px, py, z) > 0
+  end
+  local a, c, L = 0, 1, math.sqrt(best)
+  while (c - a) * L > 1e-6 do
+    local m = 0.5 * (a + c)
+    if void(m) then c = m else a = m end
+  end
+  return c * L - b, true
 end
 
 --- M.quantile(sorted, p) -> the p-quantile of a sorted list (0 when empty).

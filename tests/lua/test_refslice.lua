@@ -112,4 +112,33 @@ t.test("two voxels, discs of radius 0.3 | 0.2 across x = 1: the step on the face
   t.near(face, 0.2, 1e-7, "the step's length on the face")
   t.near(len, math.pi * 0.3 + math.pi * 0.2 + 0.2, 1e-5, "the boundary's length")
 end)
+-- steptruth.local_deviation: the distance from a contour point to the
+-- nearest void on the voxels' own fields, measured on a 0.1 um grid: against a
+-- circle, and against a crease of the field touching zero (a void sliver
+-- 0.67 um wide at x = 0 tapering to a tip at x = 1.667 um along y = 0: the
+-- kind of horn a thick sheet's distance makes along its medial surface,
+-- where slicers are ill-conditioned); across a voxel face the point's voxel
+-- is the one whose square holds each sample.
+t.test("local deviation: a circle, a thin crease's tip, a face", function()
+  local b = 0.025
+  local circle = gradus.field.expr("sqrt(x^2 + y^2) - 0.3") -- void outside
+  local V = { { lo = { -1, -1 }, hi = { 1, 1 }, field = circle } }
+  local dev, found = truth.local_deviation(V, 0, 0.3 - b - 0.0007, 0, b)
+  t.ok(found, "void found")
+  t.near(dev, 0.0007, 5e-5, "circle: 0.7 um farther than b")
+  local crease = gradus.field.expr("0.0001 - 0.3*abs(y) - 0.06*x") -- void along y = 0 for x < 1.667 um
+  local tip = 0.0001 / 0.06
+  V = { { lo = { -1, -1 }, hi = { 1, 1 }, field = crease } }
+  dev, found = truth.local_deviation(V, 0, tip + 0.02, 0.003, b)
+  t.ok(found, "crease: void found")
+  t.near(dev, math.sqrt(0.02 ^ 2 + 0.003 ^ 2) - b, 1.5e-4, "crease: the tip within 0.15 um")
+  dev, found = truth.local_deviation(V, 0, tip + 0.03, 0, b, { reach = 0.002 })
+  t.ok(not found and dev == 0.002, "no void within b + reach: the reach as a lower bound")
+  -- the same crease owned only left of x = 0: right of it a solid voxel (-1); the nearest void is
+  -- the crease at x < 0, 0.02 mm from a point at (0.02, 0)
+  V = { { lo = { -1, -1 }, hi = { 0, 1 }, field = crease }, { lo = { 0, -1 }, hi = { 1, 1 }, field = gradus.field.constant(-1) } }
+  dev = truth.local_deviation(V, 0, 0.02, 0, b)
+  t.near(dev, 0.02 - b, 1.5e-4, "face: the void ends on the face")
+end)
+
 t.done()
