@@ -119,8 +119,13 @@ for _, surface in ipairs(list(surfaces)) do
           if math.abs(q[3]) <= recheck * 1e-3 then break end
           if r.rechecked >= recheck_max then r.recheck_left = r.recheck_left + 1
           else
-            q[3] = truth.local_deviation(V, z, q[1], q[2], b, { reach = math.max(0.002, math.abs(q[3]) + 0.001) })
+            local ref, found = q[3], nil
+            q[3], found = truth.local_deviation(V, z, q[1], q[2], b, { reach = math.max(0.002, math.abs(q[3]) + 0.001) })
             r.rechecked = r.rechecked + 1
+            if per_layer then
+              print(("    layer %d point (%.5f, %.5f): %+.3f um against the reference, %s%.3f um on the field")
+                :format(g, q[1], q[2], ref * 1e3, found and "" or "no void within, at least +", q[3] * 1e3))
+            end
           end
         end
         local devs, dsum = {}, 0
