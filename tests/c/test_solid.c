@@ -333,7 +333,8 @@ TEST(large_mesh_build_and_eval) {
 
 
 /* An L-shaped prism (the profile (0,0)-(20,0)-(20,6)-(6,6)-(6,20)-(0,20),
- * 0 <= z <= 20): 20 large triangles, as recipes/plate_bracket.lua makes. */
+ * 0 <= z <= 20): 20 large triangles, like the L-bracket of
+ * recipes/plate_bracket.lua (whose L stands in the xz plane). */
 static gr_mesh *l_prism(void) {
   static const double P[6][2] = {{0, 0}, {20, 0}, {20, 6}, {6, 6}, {6, 20}, {0, 20}};
   static const int CAP[4][3] = {{0, 1, 2}, {0, 2, 3}, {0, 3, 4}, {0, 4, 5}};
@@ -400,13 +401,14 @@ static int windows(gr_field *f, const gr_mesh *m, const double o[2], double z) {
 
 TEST(few_large_faces_grouped) {
   /* a mesh of few large faces is searched by groups of nearby points
-   * (solid.c), one list of faces serving the groups that stay near it:
-   * a voxel's slice-grid window (2.55 mm, in the domain grid's order) at
-   * heights through the bottom, the middle and the top of the part and over
-   * its faces, edges and the concave corner; clusters about random
-   * centres; and batches spread over the whole part. Then a sphere of 1600
-   * faces (lists of part of the faces, reused as the groups move on). Each
-   * point against the brute-force distance. */
+   * (solid.c), each group among the faces near it: a voxel's slice-grid
+   * window (2.55 mm, in the domain grid's order) at heights through the
+   * bottom, the middle and the top of the part and over its faces, edges
+   * and the concave corner; clusters about random centres; and batches
+   * spread over the whole part. Then a sphere of 1600 faces (lists of part
+   * of the faces). Each point against the brute-force distance; this fails
+   * when the faces are gathered within U + R of a group's centre instead of
+   * U + 2R (13 points). */
   gr_mesh *m[2] = {l_prism(), uv_sphere(5, 20, 40)};
   gr_err e;
   gr_field *f[2] = {gr_solid_field(m[0], &e), NULL};
