@@ -227,7 +227,7 @@ static double box_far2(const bnode *n, const double c[3]) {
 /* The closest point to p among the count triangles tri[] nearer than
  * sqrt(*best) (squared; updated, with h), with c: only points at least
  * sqrt(r2) from c. */
-static void tris_closest(const gr_bvh *b, const uint32_t *tri, int count, const double p[3], const double *c,
+static inline void tris_closest(const gr_bvh *b, const uint32_t *tri, int count, const double p[3], const double *c,
                          double r2, double *best, gr_hit *h) {
   const gr_mesh *m = b->m;
   for (int i = 0; i < count; i++) {
