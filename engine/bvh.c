@@ -224,6 +224,30 @@ static double box_far2(const bnode *n, const double c[3]) {
   return s;
 }
 
+/* The closest point to p among the count triangles tri[] nearer than
+ * sqrt(*best) (squared; updated, with h), with c: only points at least
+ * sqrt(r2) from c. */
+static inline void tris_closest(const gr_bvh *b, const uint32_t *tri, int count, const double p[3], const double *c,
+                         double r2, double *best, gr_hit *h) {
+  const gr_mesh *m = b->m;
+  for (int i = 0; i < count; i++) {
+    uint32_t t = tri[i];
+    /* the plane's distance bounds the triangle's from below: a plane
+     * beyond best (by more than rounding) holds no nearer point */
+    const double *pl = b->pl + 4 * (size_t)t;
+    double pd = pl[0] * p[0] + pl[1] * p[1] + pl[2] * p[2] - pl[3];
+    if (pd * pd > *best * (1 + 1e-9)) continue;
+    double q[3];
+    gr_closest_on_triangle(p, m->v + 3 * m->f[3 * t], m->v + 3 * m->f[3 * t + 1], m->v + 3 * m->f[3 * t + 2], q);
+    double d2 = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]);
+    if (d2 <= *best && !(c && (q[0] - c[0]) * (q[0] - c[0]) + (q[1] - c[1]) * (q[1] - c[1]) + (q[2] - c[2]) * (q[2] - c[2]) < r2)) {
+      *best = d2;
+      h->tri = t;
+      memcpy(h->q, q, sizeof h->q);
+    }
+  }
+}
+
 /* The closest point to p within maxdist; with c, only among points at least
  * r from c (boxes wholly nearer to c are skipped). */
 static void closest(const gr_bvh *b, const double p[3], double maxdist, const double *c, double r, gr_hit *h) {
@@ -237,28 +261,12 @@ static void closest(const gr_bvh *b, const double p[3], double maxdist, const do
   double sd2[128];
   stack[sp] = 0;
   sd2[sp++] = box_d2(&b->node[0], p);
-  const gr_mesh *m = b->m;
   while (sp) {
     sp--;
     const bnode *n = &b->node[stack[sp]];
     if (sd2[sp] > best || (c && box_far2(n, c) < r2)) continue;
     if (n->left < 0) {
-      for (int i = n->first; i < n->first + n->count; i++) {
-        uint32_t t = b->tri[i];
-        /* the plane's distance bounds the triangle's from below: a plane
-         * beyond best (by more than rounding) holds no nearer point */
-        const double *pl = b->pl + 4 * (size_t)t;
-        double pd = pl[0] * p[0] + pl[1] * p[1] + pl[2] * p[2] - pl[3];
-        if (pd * pd > best * (1 + 1e-9)) continue;
-        double q[3];
-        gr_closest_on_triangle(p, m->v + 3 * m->f[3 * t], m->v + 3 * m->f[3 * t + 1], m->v + 3 * m->f[3 * t + 2], q);
-        double d2 = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]);
-        if (d2 <= best && !(c && (q[0] - c[0]) * (q[0] - c[0]) + (q[1] - c[1]) * (q[1] - c[1]) + (q[2] - c[2]) * (q[2] - c[2]) < r2)) {
-          best = d2;
-          h->tri = t;
-          memcpy(h->q, q, sizeof h->q);
-        }
-      }
+      tris_closest(b, b->tri + n->first, n->count, p, c, r2, &best, h);
       continue;
     }
     double dl = box_d2(&b->node[n->left], p), dr = box_d2(&b->node[n->right], p);
@@ -283,3 +291,43 @@ int gr_bvh_closest_away(const gr_bvh *b, const double p[3], double maxdist, cons
   return GR_OK;
 }
 
+
+int gr_bvh_near(const gr_bvh *b, const double p[3], double r, uint32_t *out, int cap) {
+  if (cap > GR_BVH_NEAR_MAX) cap = GR_BVH_NEAR_MAX;
+  double r2 = r * r * (1 + 1e-9), dist2[GR_BVH_NEAR_MAX];
+  int stack[128], sp = 0, k = 0;
+  stack[sp++] = 0;
+  const gr_mesh *m = b->m;
+  while (sp) {
+    const bnode *n = &b->node[stack[--sp]];
+    if (box_d2(n, p) > r2 || slab_d2(n, p) > r2) continue;
+    if (n->left >= 0) {
+      if (sp + 2 > 128) return -1;
+      stack[sp++] = n->left;
+      stack[sp++] = n->right;
+      continue;
+    }
+    for (int i = n->first; i < n->first + n->count; i++) {
+      uint32_t t = b->tri[i];
+      double q[3];
+      gr_closest_on_triangle(p, m->v + 3 * m->f[3 * t], m->v + 3 * m->f[3 * t + 1], m->v + 3 * m->f[3 * t + 2], q);
+      double d2 = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]);
+      if (d2 > r2) continue;
+      if (k == cap) return -1;
+      /* nearest first (insertion): the nearest answers most points of a
+       * group first, and the others' planes are then beyond it */
+      int j = k++;
+      for (; j > 0 && dist2[j - 1] > d2; j--) out[j] = out[j - 1], dist2[j] = dist2[j - 1];
+      out[j] = t, dist2[j] = d2;
+    }
+  }
+  return k;
+}
+
+void gr_bvh_closest_among(const gr_bvh *b, const uint32_t *tri, int n, const double p[3], gr_hit *h) {
+  double best = INFINITY;
+  h->tri = -1;
+  h->dist = INFINITY;
+  tris_closest(b, tri, n, p, NULL, 0, &best, h);
+  if (h->tri >= 0) h->dist = sqrt(best);
+}

@@ -22,6 +22,17 @@ int gr_bvh_closest(const gr_bvh *b, const double p[3], double maxdist, gr_hit *h
 /* The same among the mesh's points at least r from c (another patch of the
  * surface than the one around c). */
 int gr_bvh_closest_away(const gr_bvh *b, const double p[3], double maxdist, const double c[3], double r, gr_hit *h);
+/* The triangles holding a point within r of p, at most cap, into out[]:
+ * nearest to p first; their count, or -1 when there are more than cap
+ * (at most GR_BVH_NEAR_MAX). A point whose closest
+ * point lies within r - |p - x| of x has it on one of these, so
+ * gr_bvh_closest_among over them answers for every point x of a small
+ * group about p. */
+#define GR_BVH_NEAR_MAX 64
+int gr_bvh_near(const gr_bvh *b, const double p[3], double r, uint32_t *out, int cap);
+/* Closest point of the mesh to p among the n triangles tri[] (the same
+ * arithmetic as gr_bvh_closest: the same point when they hold it). */
+void gr_bvh_closest_among(const gr_bvh *b, const uint32_t *tri, int n, const double p[3], gr_hit *h);
 /* Exact closest point of triangle abc to p. */
 void gr_closest_on_triangle(const double p[3], const double a[3], const double b[3],
                             const double c[3], double q[3]);

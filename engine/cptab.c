@@ -203,7 +203,26 @@ typedef struct cut_ud {
   double skin, hy;
   const double *dv;        /* the domain at the grid nodes (gr_domain_grid) */
   const unsigned char *far; /* nodes farther than skin + 3h from its boundary */
+  const double *sd;        /* the lattice's signed distance at the grid nodes (the table's) */
+  double herr;             /* H's error bound: the table's distances are at most 2 herr too long */
 } cut_ud;
+
+/* A lower bound of the lattice value g at (x, y): the distance to the
+ * surface is at least each of the four nodes' around it (the table's, less
+ * 2 herr) less its distance from the point (1-Lipschitz), and g at least
+ * that less the thickness's bound (gr_offset_value_floor). -INFINITY
+ * outside the grid. */
+static double lattice_floor(const cut_ud *u, double x, double y) {
+  double fx = (x - u->n.lo[0]) / u->n.h, fy = (y - u->n.lo[1]) / u->hy, dlb = -INFINITY;
+  if (!(fx >= 0 && fy >= 0 && fx < u->n.nx - 1 && fy < u->n.ny - 1)) return -INFINITY;
+  int a = (int)fx, b = (int)fy;
+  for (int c = 0; c < 4; c++) {
+    int ia = a + (c & 1), ib = b + (c >> 1);
+    double r = hypot(x - (u->n.lo[0] + ia * u->n.h), y - (u->n.lo[1] + ib * u->hy));
+    dlb = fmax(dlb, fabs(u->sd[ia + (size_t)u->n.nx * ib]) - 2 * u->herr - r);
+  }
+  return gr_offset_value_floor(u->n.f, dlb);
+}
 
 /* Whether p lies in a grid cell with four far corners, wholly inside: d <=
  * -A there, A = skin + 1.5h (domain.h). */
@@ -216,8 +235,11 @@ static int far_inside(const cut_ud *u, double x, double y) {
 
 /* The trimmed value at refined points, d evaluated only where it may
  * decide: with a skin, wherever d >= -skin/2 the value is d whatever the
- * lattice (min(g, -d - skin) <= d there), so g is not needed; deep inside
+ * lattice (min(g, -d - skin) <= d there), so g is not needed, nor where g is
+ * certainly above -d - skin (lattice_floor, with CUT_ROOM to spare: the
+ * value is then max(d, -d - skin), the same as from g itself); deep inside
  * (d <= -A) it is g wherever -A <= g <= A - skin, so d is not needed. */
+#define CUT_ROOM 1e-4 /* mm: far above the closest points' tolerance */
 static int cut_fn(void *ud_, size_t n, const double *x, const double *y, double *out, gr_err *e) {
   cut_ud *u = ud_;
   enum { B = 256 };
@@ -235,9 +257,14 @@ static int cut_fn(void *ud_, size_t n, const double *x, const double *y, double 
     for (size_t q = 0; q < k; q++) dv[id[q]] = g[q];
     /* the lattice where it may decide */
     k = 0;
-    for (size_t i = 0; i < m; i++)
-      if (st[i] == 1 || !(u->skin > 0 && dv[i] >= -0.5 * u->skin))
-        st[i] |= 4, id[k] = i, px[k] = x[s + i], py[k] = y[s + i], k++;
+    for (size_t i = 0; i < m; i++) {
+      if (st[i] == 2 && u->skin > 0 && dv[i] >= -0.5 * u->skin) continue;
+      if (st[i] == 2 && u->skin > 0 && lattice_floor(u, x[s + i], y[s + i]) > -dv[i] - u->skin + CUT_ROOM) {
+        st[i] |= 4, out[s + i] = -dv[i] - u->skin; /* min(g, -d - skin) */
+        continue;
+      }
+      st[i] |= 4, id[k] = i, px[k] = x[s + i], py[k] = y[s + i], k++;
+    }
     int rc = k ? near_eval(&u->n, k, px, py, g, NULL, NULL, e) : GR_OK;
     if (rc) return rc;
     for (size_t q = 0; q < k; q++) out[s + id[q]] = g[q];
@@ -365,7 +392,7 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
     rc = gr_domain_grid(d, skin, z, so->lo[0], so->lo[1], hx, hy, nx, ny, dv, far, e);
     if (!rc) gr_domain_trim_apply(nn, v, dv, skin, NULL);
   }
-  cut_ud u = {{f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q}, d, skin, hy, dv, far};
+  cut_ud u = {{f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q}, d, skin, hy, dv, far, sd, gr_offset_herr(f)};
   if (!rc)
     rc = cut ? gr_slice_grid(v, so, cut_fn, NULL, &u, out, e) : gr_slice_grid(v, so, near_fn, near_eval, &u.n, out, e);
   free(far);

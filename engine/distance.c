@@ -589,6 +589,20 @@ double gr_offset_herr(const gr_field *f_) {
   return f ? f->herr : -1;
 }
 
+/* Whether a thickness expression (NULL: none) uses none of x, y, z, u, v, w:
+ * T is then the same everywhere (the density table maps it to one value). */
+static int expr_constant(const gr_expr *x) {
+  for (int i = 0; x && i < 6; i++)
+    if (gr_expr_uses(x, i)) return 0;
+  return 1;
+}
+
+double gr_offset_value_floor(const gr_field *f_, double dlb) {
+  const offset *f = gr_field_callback_data(f_, offset_eval);
+  if (!f || f->kind != GR_OFFSET_SHEET) return -INFINITY;
+  return dlb - (expr_constant(f->t) && expr_constant(f->tin) && !f->tfield ? f->tmax : f->maxt);
+}
+
 int gr_offset_strict(const gr_field *f_, const double p[3], double q[3], double *sd, gr_err *e) {
   const offset *f = gr_field_callback_data(f_, offset_eval);
   if (!f) return gr_fail(e, GR_EARG, "closest points need an offset field");

@@ -85,6 +85,13 @@ int gr_offset_values(const gr_field *f, size_t n, double *q, double *sd, double 
 /* H's error bound of offset field f (half a mesh spacing, mm), or -1 when
  * f is not one. */
 double gr_offset_herr(const gr_field *f);
+/* A lower bound of offset field f's value at a point at least dlb (mm) from
+ * its surface, for a sheet: dlb less its thickness when that is constant
+ * (its value at H's vertices), or less the graded thickness's bound (the largest T over H's vertices with a 20 %
+ * reserve and two mesh spacings, as the field's own far values take it);
+ * -INFINITY for a network (or not an offset field), whose value inside is
+ * negative however far. */
+double gr_offset_value_floor(const gr_field *f, double dlb);
 /* The strict check for one point p with closest point q (in place) and
  * signed distance sd (in place): where a patch of H is
  * nearer than q by more than 0.1 um (also one within twice the mesh's

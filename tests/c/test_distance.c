@@ -888,6 +888,55 @@ TEST(model_eval_vs_exact) {
     }
 }
 
+
+/* gr_offset_value_floor, which lets a trimmed voxel skip the lattice where
+ * the skin certainly decides (cptab.c): at random points of a cell, the
+ * floor of the table's distance (gr_offset_closest, less the 2 herr it may
+ * be too long) never exceeds the value from that closest point
+ * (gr_offset_values: d - T(q), T graded at q), for a constant and two graded
+ * sheets; for the constant sheet it is the value's own rule d - T (not a
+ * looser bound), and a network gets none. (The field's own evaluation gives
+ * only a bound far from H.) */
+TEST(value_floor_bounds) {
+  gr_err e;
+  gr_field *phi = gr_field_tpms("gyroid", PL, NULL, 0, &e);
+  gr_field *sh[3] = {NULL, gyroid_sheet(1, &e), p_sheet(40, GR_DIST_EXACT, &e)};
+  gr_offset_opts o = gr_offset_defaults();
+  o.surface = phi;
+  o.cell[0] = o.cell[1] = o.cell[2] = PL;
+  for (int a = 0; a < 3; a++) { o.box_lo[a] = 0; o.box_hi[a] = PL; }
+  o.thickness_expr = "0.15";
+  sh[0] = phi ? gr_offset_field_new(&o, &e) : NULL;
+  o.kind = GR_OFFSET_NETWORK;
+  gr_field *net = phi ? gr_offset_field_new(&o, &e) : NULL;
+  CHECK(sh[0] && sh[1] && sh[2] && net, "%s", e.msg);
+  if (sh[0] && sh[1] && sh[2] && net) {
+    CHECK(isinf(gr_offset_value_floor(net, 0.3)) && gr_offset_value_floor(net, 0.3) < 0, "a network has a floor");
+    CHECK(gr_offset_value_floor(sh[0], 0.4) == 0.4 - 0.15, "constant sheet: floor(0.4) = %.17g", gr_offset_value_floor(sh[0], 0.4));
+    unsigned long long sd = 3;
+    int n = 0, bad = 0;
+    double slack = INFINITY;
+    for (int k = 0; k < 3; k++)
+      for (int it = 0; it < 3000; it++) {
+        double p[3] = {2 * rnd(&sd), 2 * rnd(&sd), 2 * rnd(&sd)}, q[3], s;
+        if (gr_offset_closest(sh[k], 1, &p[0], &p[1], &p[2], 1.0, q, &s, &e) || isnan(q[0])) continue;
+        double v, fl = gr_offset_value_floor(sh[k], fabs(s) - 2 * gr_offset_herr(sh[k]));
+        if (gr_offset_values(sh[k], 1, q, &s, &v, &e)) continue;
+        n++;
+        if (!(fl <= v)) {
+          if (!bad++) printf("    sheet %d at (%g, %g, %g): floor %.9g > value %.9g\n", k, p[0], p[1], p[2], fl, v);
+        }
+        if (k == 0) slack = fmin(slack, v - (fabs(s) - 0.15));
+      }
+    CHECK(n > 6000, "only %d points", n);
+    CHECK(bad == 0, "%d of %d points below the floor", bad, n);
+    CHECK(fabs(slack) < 1e-6, "constant sheet: value - (d - T) %.3g at the nearest", slack);
+  }
+  for (int k = 0; k < 3; k++) gr_field_free(sh[k]);
+  gr_field_free(net);
+  gr_field_free(phi);
+}
+
 int main(void) {
   RUN(triangle_vs_sampling);
   RUN(bvh_sphere);
@@ -903,5 +952,6 @@ int main(void) {
   RUN(direct_eval_overshoot);
   RUN(near_hints_both_patches);
   RUN(model_eval_vs_exact);
+  RUN(value_floor_bounds);
   DONE();
 }

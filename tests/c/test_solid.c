@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "check.h"
+#include "bvh.h"
 #include "distance.h"
 #include "solid.h"
 
@@ -330,6 +331,111 @@ TEST(large_mesh_build_and_eval) {
   gr_mesh_free(m);
 }
 
+
+/* An L-shaped prism (the profile (0,0)-(20,0)-(20,6)-(6,6)-(6,20)-(0,20),
+ * 0 <= z <= 20): 20 large triangles, like the L-bracket of
+ * recipes/plate_bracket.lua (whose L stands in the xz plane). */
+static gr_mesh *l_prism(void) {
+  static const double P[6][2] = {{0, 0}, {20, 0}, {20, 6}, {6, 6}, {6, 20}, {0, 20}};
+  static const int CAP[4][3] = {{0, 1, 2}, {0, 2, 3}, {0, 3, 4}, {0, 4, 5}};
+  gr_mesh *m = gr_mesh_new();
+  for (int z = 0; z < 2; z++)
+    for (int k = 0; k < 6; k++) gr_mesh_add_vertex(m, P[k][0], P[k][1], 20 * z);
+  for (int t = 0; t < 4; t++) {
+    gr_mesh_add_face(m, (uint32_t)CAP[t][0], (uint32_t)CAP[t][2], (uint32_t)CAP[t][1]); /* bottom: down */
+    gr_mesh_add_face(m, 6 + (uint32_t)CAP[t][0], 6 + (uint32_t)CAP[t][1], 6 + (uint32_t)CAP[t][2]);
+  }
+  for (uint32_t k = 0; k < 6; k++) {
+    uint32_t l = (k + 1) % 6;
+    gr_mesh_add_face(m, k, l, 6 + l);
+    gr_mesh_add_face(m, k, 6 + l, 6 + k);
+  }
+  return m;
+}
+
+/* Brute force: the distance to the nearest of all faces. */
+static double brute_dist(const gr_mesh *m, const double p[3]) {
+  double best = INFINITY;
+  for (size_t t = 0; t < m->nf; t++) {
+    double q[3];
+    gr_closest_on_triangle(p, m->v + 3 * m->f[3 * t], m->v + 3 * m->f[3 * t + 1], m->v + 3 * m->f[3 * t + 2], q);
+    best = fmin(best, sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2])));
+  }
+  return best;
+}
+
+/* n points evaluated together against brute force: every distance to
+ * 1e-12 mm, and every sign against the point evaluated alone (a search of
+ * the whole BVH) where it is more than 1e-9 mm from the surface; returns the
+ * number of points that fail. */
+static int against_brute(gr_field *f, const gr_mesh *m, size_t n, const double *x, const double *y, const double *z) {
+  double *v = malloc(n * sizeof *v);
+  gr_err e;
+  int bad = 0;
+  if (!v || gr_field_eval(f, n, x, y, z, v, &e)) bad = (int)n;
+  for (size_t i = 0; i < n && !bad; i++) {
+    double p[3] = {x[i], y[i], z[i]}, t = brute_dist(m, p), one = eval1(f, x[i], y[i], z[i]);
+    if (fabs(fabs(v[i]) - t) > 1e-12 || (t > 1e-9 && (v[i] < 0) != (one < 0))) {
+      if (!bad) printf("    (%.6f, %.6f, %.6f): %.15g, brute force %.15g, alone %.15g\n", p[0], p[1], p[2], v[i], t, one);
+      bad++;
+    }
+  }
+  free(v);
+  return bad;
+}
+
+/* Windows of 102 x 102 nodes 0.025 mm apart at height z from corner o, in
+ * the order the domain grid evaluates them (blocks of 4 x 4 nodes, row by
+ * row of blocks; batches of 256), against brute force. */
+static int windows(gr_field *f, const gr_mesh *m, const double o[2], double z) {
+  enum { W = 102, NN = W * W };
+  static double x[NN], y[NN], zz[NN];
+  int k = 0, bad = 0;
+  for (int bj = 0; bj < W; bj += 4)
+    for (int bi = 0; bi < W; bi += 4)
+      for (int j = bj; j < bj + 4 && j < W; j++)
+        for (int i = bi; i < bi + 4 && i < W; i++, k++) x[k] = o[0] + 0.025 * i, y[k] = o[1] + 0.025 * j, zz[k] = z;
+  for (int s = 0; s < NN; s += 256) bad += against_brute(f, m, NN - s < 256 ? NN - s : 256, x + s, y + s, zz + s);
+  return bad;
+}
+
+TEST(few_large_faces_grouped) {
+  /* a mesh of few large faces is searched by groups of nearby points
+   * (solid.c), each group among the faces near it: a voxel's slice-grid
+   * window (2.55 mm, in the domain grid's order) at heights through the
+   * bottom, the middle and the top of the part and over its faces, edges
+   * and the concave corner; clusters about random centres; and batches
+   * spread over the whole part. Then a sphere of 1600 faces (lists of part
+   * of the faces). Each point against the brute-force distance; this fails
+   * when the faces are gathered within U + R of a group's centre instead of
+   * U + 2R (13 points). */
+  gr_mesh *m[2] = {l_prism(), uv_sphere(5, 20, 40)};
+  gr_err e;
+  gr_field *f[2] = {gr_solid_field(m[0], &e), NULL};
+  CHECK(f[0] != NULL, "%s", e.msg);
+  f[1] = gr_solid_field(m[1], &e);
+  CHECK(f[1] != NULL, "%s", e.msg);
+  static const double Z[] = {0.01, 0.3, 5.9, 6.02, 10, 19.7, 20.03}, O[][2] = {{-1, -1}, {4.8, 4.8}, {5.5, 9}, {12, 5}, {18.8, -0.5}};
+  static const double SZ[] = {-4.9, -2, 0.3, 3.5}, SO[][2] = {{-1.3, -1.3}, {2.5, 2.5}, {-5.5, 1}, {3.8, -3}};
+  int bad = 0, n = 0;
+  for (size_t a = 0; f[0] && a < sizeof Z / sizeof *Z; a++)
+    for (size_t b = 0; b < sizeof O / sizeof *O; b++, n += 102 * 102) bad += windows(f[0], m[0], O[b], Z[a]);
+  for (size_t a = 0; f[1] && a < sizeof SZ / sizeof *SZ; a++)
+    for (size_t b = 0; b < sizeof SO / sizeof *SO; b++, n += 102 * 102) bad += windows(f[1], m[1], SO[b], SZ[a]);
+  unsigned long long sd = 7;
+  double x[4096], y[4096], z[4096];
+  for (int c = 0; f[0] && c < 2000; c++, n += 16) {
+    double cx = 24 * rnd(&sd) - 2, cy = 24 * rnd(&sd) - 2, cz = 24 * rnd(&sd) - 2, r = c % 2 ? 0.3 : 3;
+    for (int k = 0; k < 16; k++)
+      x[k] = cx + r * (rnd(&sd) - 0.5), y[k] = cy + r * (rnd(&sd) - 0.5), z[k] = cz + r * (rnd(&sd) - 0.5);
+    bad += against_brute(f[0], m[0], 16, x, y, z);
+  }
+  for (int k = 0; k < 4096; k++) x[k] = 24 * rnd(&sd) - 2, y[k] = 24 * rnd(&sd) - 2, z[k] = 24 * rnd(&sd) - 2;
+  if (f[0]) bad += against_brute(f[0], m[0], 4096, x, y, z), n += 4096;
+  CHECK(bad == 0, "%d of %d points differ from the brute-force distance", bad, n);
+  for (int k = 0; k < 2; k++) gr_field_free(f[k]), gr_mesh_free(m[k]);
+}
+
 int main(void) {
   RUN(box_exact);
   RUN(box_with_cavity);
@@ -337,5 +443,6 @@ int main(void) {
   RUN(sphere_within_chord_error);
   RUN(invalid_meshes);
   RUN(large_mesh_build_and_eval);
+  RUN(few_large_faces_grouped);
   DONE();
 }
