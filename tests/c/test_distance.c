@@ -693,6 +693,19 @@ static double worst_vs_samples(const double *S, size_t ns, size_t n, const doubl
   return worst;
 }
 
+/* g's values at n (<= 16) points against the sampled zero set S (as
+ * worst_vs_samples), within 0.1 um; S is freed. */
+static void check_vs_samples(const char *what, const gr_field *g, double *S, size_t ns, size_t n, const double *x,
+                             const double *y, const double *z, double t0, double tz) {
+  double v[16], worst = INFINITY, at = 0;
+  gr_err e;
+  int ok = S && g && n <= 16 && !gr_field_eval(g, n, x, y, z, v, &e);
+  if (ok) worst = worst_vs_samples(S, ns, n, x, y, z, v, t0, tz, &at);
+  printf("  info: %s: point values off the sampled truth by %.3g um (worst at y = %.4f)\n", what, worst * 1e3, at);
+  CHECK(ok && worst < 1e-4, "%s: off by %.3g um at y = %.4f", what, worst * 1e3, at);
+  free(S);
+}
+
 /* A point evaluation (closest point on H, then refined onto phi = 0) where
  * the refinement does not settle: an iwp sheet of half-thickness 0.3 mm, on
  * a line across the mirror plane y = 4 at x = 2.519, z = 1.1 (the tip of a
@@ -705,16 +718,12 @@ TEST(direct_eval_on_surface) {
   gr_field *phi = NULL, *g = iwp_sheet(2, 0.3, &phi, &e);
   CHECK(g != NULL, "%s", e.msg);
   enum { N = 11 };
-  double c[3] = {2.519, 4, 1.1}, x[N], y[N], z[N], v[N], worst = 0, at = 0;
+  double c[3] = {2.519, 4, 1.1}, x[N], y[N], z[N];
   size_t ns = 0;
   double *S = g ? iwp_samples(phi, c, 0.33, 0.005, &ns) : NULL;
   CHECK(ns > 1000, "%zu surface samples", ns);
   for (int i = 0; i < N; i++) x[i] = c[0], y[i] = c[1] - 0.005 + 0.01 * i / (N - 1), z[i] = c[2];
-  if (S && !gr_field_eval(g, N, x, y, z, v, &e)) worst = worst_vs_samples(S, ns, N, x, y, z, v, 0.3, 0, &at);
-  printf("  info: iwp T = 0.3 across y = 4 at x = 2.519, z = 1.1: point values off the sampled truth by %.3g um"
-         " (worst at y = %.4f)\n", worst * 1e3, at);
-  CHECK(S && worst < 1e-4, "off by %.3g um at y = %.4f", worst * 1e3, at);
-  free(S);
+  check_vs_samples("iwp T = 0.3 across y = 4 at x = 2.519, z = 1.1", g, S, ns, N, x, y, z, 0.3, 0);
   gr_field_free(g);
   gr_field_free(phi);
 }
@@ -744,16 +753,12 @@ TEST(direct_eval_overshoot) {
   gr_field *g = phi ? gr_offset_field_new(&o, &e) : NULL;
   CHECK(g != NULL, "%s", e.msg);
   enum { N = 12 };
-  double c[3] = {1, 0.47, 4.36}, x[N], y[N], z[N], v[N], worst = 0, at = 0;
+  double c[3] = {1, 0.47, 4.36}, x[N], y[N], z[N];
   size_t ns = 0;
   double *S = g ? iwp_samples(phi, c, 0.2, 0.005, &ns) : NULL;
   CHECK(ns > 1000, "%zu surface samples", ns);
   for (int i = 0; i < N; i++) x[i] = i < N / 2 ? 1 : 0.999, y[i] = 0.378 + 0.012 * (i % (N / 2)) / (N / 2 - 1), z[i] = 4.14;
-  if (S && !gr_field_eval(g, N, x, y, z, v, &e)) worst = worst_vs_samples(S, ns, N, x, y, z, v, 0.2, 0.015, &at);
-  printf("  info: iwp column T = 0.2 + 0.015 z near x = 1, z = 4.14: point values off the sampled truth by %.3g um"
-         " (worst at y = %.4f)\n", worst * 1e3, at);
-  CHECK(S && worst < 1e-4, "off by %.3g um at y = %.4f", worst * 1e3, at);
-  free(S);
+  check_vs_samples("iwp column T = 0.2 + 0.015 z near x = 1, z = 4.14", g, S, ns, N, x, y, z, 0.2, 0.015);
   gr_field_free(g);
   gr_field_free(phi);
 }
