@@ -258,10 +258,12 @@ static int cut_fn(void *ud_, size_t n, const double *x, const double *y, double 
     /* the lattice where it may decide */
     k = 0;
     for (size_t i = 0; i < m; i++) {
-      if (st[i] == 2 && u->skin > 0 && dv[i] >= -0.5 * u->skin) continue;
-      if (st[i] == 2 && u->skin > 0 && lattice_floor(u, x[s + i], y[s + i]) > -dv[i] - u->skin + CUT_ROOM) {
-        st[i] |= 4, out[s + i] = -dv[i] - u->skin; /* min(g, -d - skin) */
-        continue;
+      if (st[i] == 2 && u->skin > 0) {
+        if (dv[i] >= -0.5 * u->skin) continue;
+        if (lattice_floor(u, x[s + i], y[s + i]) > -dv[i] - u->skin + CUT_ROOM) {
+          st[i] |= 4, out[s + i] = -dv[i] - u->skin; /* min(g, -d - skin) */
+          continue;
+        }
       }
       st[i] |= 4, id[k] = i, px[k] = x[s + i], py[k] = y[s + i], k++;
     }

@@ -223,7 +223,7 @@ static int exact_refine(const offset *f, const double p[3], double q[3]) {
   }
   if (!conv) memcpy(x, xb, sizeof x);
   if (!conv && !settle(f, p, q, x)) return 0;
-  double dq = sqrt((x[0] - q[0]) * (x[0] - q[0]) + (x[1] - q[1]) * (x[1] - q[1]) + (x[2] - q[2]) * (x[2] - q[2]));
+  double dq = dist3(x, q);
   if (!(isfinite(dq) && dq < 0.25 * f->L)) return 0;
   memcpy(q, x, sizeof x);
   return 1;

@@ -163,6 +163,8 @@ end
 function M.local_deviation(voxels, z, x, y, b, opts)
   opts = opts or {}
   local h, reach = opts.h or 1e-4, opts.reach or 0.002
+  if not (h > 0 and h < math.huge) then error(("steptruth.local_deviation: bad option 'h' (grid step > 0 mm expected, got %s)"):format(h), 2) end
+  if not (reach >= 0 and reach < math.huge) then error(("steptruth.local_deviation: bad option 'reach' (>= 0 mm expected, got %s)"):format(reach), 2) end
   local R = b + reach
   local n = math.floor(R / h)
   local byv = {}

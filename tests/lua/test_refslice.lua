@@ -139,6 +139,8 @@ t.test("local deviation: a circle, a thin crease's tip, a face", function()
   V = { { lo = { -1, -1 }, hi = { 0, 1 }, field = crease }, { lo = { 0, -1 }, hi = { 1, 1 }, field = gradus.field.constant(-1) } }
   dev = truth.local_deviation(V, 0, 0.02, 0, b)
   t.near(dev, 0.02 - b, 1.5e-4, "face: the void ends on the face")
+  t.raises(function() truth.local_deviation(V, 0, 0, 0, b, { h = 0 }) end, "bad option 'h'")
+  t.raises(function() truth.local_deviation(V, 0, 0, 0, b, { reach = -1 }) end, "bad option 'reach'")
 end)
 
 t.done()
