@@ -360,6 +360,7 @@ static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) 
   gr_lua_setint(L, "layers_total", gr_job_layers(j));
   gr_lua_setint(L, "voxels", st->voxels);
   gr_lua_setint(L, "trimmed_voxels", st->trimmed);
+  gr_lua_setint(L, "trimmed_templates", st->trimmed_classes);
   lua_newtable(L);
   gr_lua_setint(L, "unique", st->classes);
   gr_lua_setint(L, "built", st->built);

@@ -1,6 +1,8 @@
 /* classify.c: voxel classes and signatures, see classify.h. */
 #include "classify.h"
 #include "density.h"
+#include "domain.h"
+#include "template.h"
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -156,6 +158,21 @@ static char *voxel_signature(gr_job *j, int v, gr_err *e) {
   return sig;
 }
 
+/* The key of the domain's boundary near trimmed voxel v (domain.h): the
+ * box is the template's window (gr_tmpl_window) in x and y and the voxel in
+ * z, grown by the skin and a quarter cell, beyond which only d's sign
+ * matters to the trimmed value's zero set (the lattice's zero set where d <
+ * -skin, none where d > 0). 1 and key, 0 (no key), -1 (error). */
+static int trimmed_key(gr_job *j, int v, char key[65], gr_err *e) {
+  const double *L = j->o.cell;
+  double m = gr_tmpl_window(&j->o), D = j->skin + 0.25 * fmin(L[0], fmin(L[1], L[2]));
+  double o[3], lo[3] = {-m - D, -m - D, -D}, hi[3] = {L[0] + m + D, L[1] + m + D, L[2] + D};
+  gr_grid_origin(&j->grid, v, o);
+  int rc = gr_domain_local_key(j->domain, lo, hi, o, key, e);
+  if (rc < 0) gr_err_prefix(e, "domain");
+  return rc;
+}
+
 int gr_classify_run(gr_job *j, int direct, gr_err *e) {
   if (j->nspecs == 0) return gr_fail(e, GR_EARG, "job has no cell spec");
   if (classify_domain(j, e)) return e->code;
@@ -174,6 +191,7 @@ int gr_classify_run(gr_job *j, int direct, gr_err *e) {
   if (!head || !link) { free(head); free(link); return gr_fail(e, GR_EMEM, "out of memory"); }
   for (size_t b = 0; b < nb; b++) head[b] = -1;
   memset(&j->st.voxels, 0, sizeof j->st.voxels);
+  j->st.trimmed = j->st.trimmed_classes = 0;
   for (int v = 0; v < j->nvox; v++) {
     j->vcls[v] = -1;
     if (j->vspec[v] < 0 || j->vstate[v] == 0) continue;
@@ -181,8 +199,11 @@ int gr_classify_run(gr_job *j, int direct, gr_err *e) {
     if (!sig) { free(head); free(link); return e->code; }
     char key[65];
     if (j->vstate[v] == 2 || direct) {
-      char buf[64];
-      snprintf(buf, sizeof buf, ", voxel: %d, trimmed: %d", v, j->vstate[v] == 2);
+      char buf[160];
+      int dk = j->vstate[v] == 2 && !direct ? trimmed_key(j, v, key, e) : 0;
+      if (dk < 0) { free(sig); free(head); free(link); return e->code; }
+      if (dk) snprintf(buf, sizeof buf, ", domain: %s, skin: %.9g, trimmed: 1", key, j->skin);
+      else snprintf(buf, sizeof buf, ", voxel: %d, trimmed: %d", v, j->vstate[v] == 2);
       size_t sl = strlen(sig);
       char *s2 = realloc(sig, sl + strlen(buf) + 1);
       if (!s2) { free(sig); free(head); free(link); return gr_fail(e, GR_EMEM, "out of memory"); }
@@ -200,6 +221,7 @@ int gr_classify_run(gr_job *j, int direct, gr_err *e) {
       j->cls[c].rep = v;
       j->cls[c].sig = sig;
       j->cls[c].trimmed = j->vstate[v] == 2;
+      j->st.trimmed_classes += j->vstate[v] == 2;
       memcpy(j->cls[c].key, key, 65);
       link[c] = head[b];
       head[b] = c;

@@ -75,4 +75,17 @@ void gr_domain_trim_apply(size_t n, double *v, const double *dv, double skin, un
 int gr_domain_grid(const gr_field *d, double skin, double z, double x0, double y0, double hx, double hy, int nx,
                    int ny, double *dv, unsigned char *far, gr_err *e);
 
+/* A key of d's boundary within the box lo..hi (mm, relative to the point
+ * o): boxes whose keys match hold the same boundary, translated by their o,
+ * to 1e-7 mm, and so the same values of d wherever |d| is below the
+ * distance from the box's faces to the region that matters, and the same
+ * sign wherever that region is connected to such points (what a trimmed
+ * voxel's template needs: place.h). The boundary is described by its planar
+ * patches, not its triangles (domkey.c). Made for an STL solid (solid.h)
+ * with at most GR_BVH_NEAR_MAX faces near the box: 1 and key (64 hex
+ * digits); 0 for any other domain (no key: the voxel keeps a template of
+ * its own); -1 on an error of d (its message in e) or GR_EMEM. */
+int gr_domain_local_key(const gr_field *d, const double lo[3], const double hi[3], const double o[3], char key[65],
+                        gr_err *e);
+
 #endif

@@ -37,6 +37,7 @@ typedef struct gr_job_stats {
   int layers;                  /* layers written */
   int voxels;                  /* voxels with a lattice */
   int trimmed;                 /* of which cut by the domain boundary */
+  int trimmed_classes;         /* their templates (shared where the domain's boundary repeats) */
   int classes;                 /* unique voxel classes (templates) */
   int built;                   /* templates computed in this run */
   int reused;                  /* templates loaded from the knowledge base */

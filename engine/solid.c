@@ -19,6 +19,8 @@ typedef struct solid {
   double *en;     /* 9 per face: pseudo-normal of edge k (vertex k to k+1) */
   double *vn;     /* 3 per vertex: angle-weighted pseudo-normal */
   double *el;     /* 4 per face: edge lengths (vertex k to k+1), 1e-9 x the longest */
+  uint32_t *patch; /* per face: its planar patch (the lowest face of it) */
+  unsigned char *bmask; /* per face: bit k set when edge k bounds its patch */
   double sign;    /* +1, or -1 when the mesh's normals point inward */
 } solid;
 
@@ -31,6 +33,8 @@ static void solid_free(void *ud) {
   free(s->en);
   free(s->vn);
   free(s->el);
+  free(s->patch);
+  free(s->bmask);
   free(s);
 }
 
@@ -92,6 +96,23 @@ static int edge_fail(gr_err *e, const gr_mesh *m, const char *what, size_t n, co
                  n > 1 ? "s" : "", a[0], a[1], a[2], b[0], b[1], b[2]);
 }
 
+/* Planar patches: faces joined across an edge when their normals agree to
+ * 1e-12 (1 - cos; about 1.4e-6 rad), by union-find on s->patch. */
+static uint32_t patch_root(uint32_t *p, uint32_t t) {
+  while (p[t] != t) t = p[t] = p[p[t]];
+  return t;
+}
+static void patch_pair(solid *s, const side *a, const side *b) {
+  if (dot(s->fn + 3 * (size_t)a->face, s->fn + 3 * (size_t)b->face) > 1 - 1e-12) {
+    uint32_t ra = patch_root(s->patch, a->face), rb = patch_root(s->patch, b->face);
+    if (ra < rb) s->patch[rb] = ra;
+    else s->patch[ra] = rb;
+  } else {
+    s->bmask[a->face] |= (unsigned char)(1u << a->k);
+    s->bmask[b->face] |= (unsigned char)(1u << b->k);
+  }
+}
+
 static int edge_normals(solid *s, gr_err *e) {
   const gr_mesh *m = s->m;
   size_t ns = 3 * m->nf;
@@ -120,9 +141,11 @@ static int edge_normals(solid *s, gr_err *e) {
       double n[3];
       for (int a = 0; a < 3; a++) n[a] = s->fn[3 * h[i].face + a] + s->fn[3 * h[i + 1].face + a];
       for (int q = 0; q < 2; q++) memcpy(s->en + 9 * (size_t)h[i + q].face + 3 * h[i + q].k, n, sizeof n);
+      patch_pair(s, &h[i], &h[i + 1]);
     }
     i = j;
   }
+  for (size_t t = 0; t < m->nf; t++) s->patch[t] = patch_root(s->patch, (uint32_t)t);
   int rc = GR_OK;
   if (nopen) rc = edge_fail(e, m, "the mesh is not closed (open boundary edges, used by one face)", nopen, xopen);
   else if (nmany) rc = edge_fail(e, m, "the mesh is not manifold (edges shared by more than two faces)", nmany, xmany);
@@ -468,10 +491,13 @@ gr_field *gr_solid_field(const gr_mesh *m, gr_err *e) {
   s->en = calloc(9 * m->nf, sizeof *s->en);
   s->vn = calloc(3 * m->nv, sizeof *s->vn);
   s->el = calloc(4 * m->nf, sizeof *s->el);
-  if (!s->fn || !s->en || !s->vn || !s->el) {
+  s->patch = malloc(m->nf * sizeof *s->patch);
+  s->bmask = calloc(m->nf, sizeof *s->bmask);
+  if (!s->fn || !s->en || !s->vn || !s->el || !s->patch || !s->bmask) {
     solid_free(s);
     return gr_fail(e, GR_EMEM, "out of memory for a solid of %zu faces", m->nf), NULL;
   }
+  for (size_t t = 0; t < m->nf; t++) s->patch[t] = (uint32_t)t;
   if (face_normals(s, e) || edge_normals(s, e) || self_intersections(s, e)) return solid_free(s), NULL;
   edge_lengths(s);
   double vol = gr_mesh_volume(s->m);
@@ -481,4 +507,15 @@ gr_field *gr_solid_field(const gr_mesh *m, gr_err *e) {
   if (!f) return solid_free(s), gr_fail(e, GR_EMEM, "out of memory"), NULL;
   gr_field_set_lipschitz(f, 1);
   return f;
+}
+
+int gr_solid_view_of(const gr_field *f, gr_solid_view *v) {
+  const solid *s = gr_field_callback_data(f, solid_eval);
+  if (!s) return 0;
+  v->m = s->m;
+  v->bvh = s->bvh;
+  v->fn = s->fn;
+  v->patch = s->patch;
+  v->bmask = s->bmask;
+  return 1;
 }

@@ -14,6 +14,7 @@
 #define GR_SOLID_H
 #include "field.h"
 #include "mesh.h"
+#include "bvh.h"
 
 /* The solid bounded by m (copied: m may be freed afterwards). The field is
  * thread-safe, has the analytic gradient (p - q)/|p - q| (signed) and the
@@ -31,5 +32,21 @@
  * A mesh whose normals all point inward (negative volume) is accepted: the
  * sign is flipped. */
 gr_field *gr_solid_field(const gr_mesh *m, gr_err *e);
+
+/* The parts of a solid field, borrowed (valid while f lives): its mesh and
+ * BVH, unit face normals (3 per face), each face's planar patch (faces
+ * joined across edges where their normals agree to 1e-12 in 1 - cos: the
+ * number of the patch's lowest face) and, per face, bit k set when its edge
+ * k (vertex k to k+1) bounds its patch (a crease of the surface). */
+typedef struct gr_solid_view {
+  const gr_mesh *m;
+  const gr_bvh *bvh;
+  const double *fn;
+  const uint32_t *patch;
+  const unsigned char *bmask;
+} gr_solid_view;
+
+/* 1 and v filled if f was made by gr_solid_field, else 0. */
+int gr_solid_view_of(const gr_field *f, gr_solid_view *v);
 
 #endif

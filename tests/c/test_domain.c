@@ -3,10 +3,13 @@
  * points (inside and outside the band), a field that is a distance already
  * kept as it is, and NaN from the domain reported as the domain's; the
  * domain on a plane grid near its boundary only (gr_domain_grid) against
- * the domain evaluated at every node. */
+ * the domain evaluated at every node; the local key of an STL domain's
+ * boundary (gr_domain_local_key): equal for boxes translated along a face,
+ * whatever the triangulation, different where the boundary differs. */
 #include <math.h>
 #include <string.h>
 #include "domain.h"
+#include "solid.h"
 #include "check.h"
 
 TEST(cylinder_squared) {
@@ -158,10 +161,85 @@ TEST(grid_near_boundary_only) {
   gr_field_free(f);
 }
 
+/* The box lo..hi as a closed mesh; split: its bottom face (z = lo) cut into
+ * four triangles about its centre instead of two. */
+static gr_mesh *box_mesh(const double lo[3], const double hi[3], int split) {
+  static const int F[12][3] = {{0, 2, 3}, {0, 3, 1}, {4, 5, 7}, {4, 7, 6}, {0, 1, 5}, {0, 5, 4},
+                               {2, 6, 7}, {2, 7, 3}, {0, 4, 6}, {0, 6, 2}, {1, 3, 7}, {1, 7, 5}};
+  gr_mesh *m = gr_mesh_new();
+  for (int v = 0; v < 8; v++) gr_mesh_add_vertex(m, v & 1 ? hi[0] : lo[0], v & 2 ? hi[1] : lo[1], v & 4 ? hi[2] : lo[2]);
+  for (int f = split ? 2 : 0; f < 12; f++) gr_mesh_add_face(m, F[f][0], F[f][1], F[f][2]);
+  if (split) { /* bottom, seen from below: 0, 2, 3, 1 */
+    gr_mesh_add_vertex(m, 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), lo[2]);
+    static const int R[4] = {0, 2, 3, 1};
+    for (int k = 0; k < 4; k++) gr_mesh_add_face(m, 8, R[k], R[(k + 1) % 4]);
+  }
+  return m;
+}
+
+static gr_field *box_solid(double lo0, double lo1, int split) {
+  double lo[3] = {lo0, lo1, 0}, hi[3] = {12, 4, 2};
+  gr_mesh *m = box_mesh(lo, hi, split);
+  gr_err e;
+  gr_err_clear(&e);
+  gr_field *f = gr_solid_field(m, &e);
+  CHECK(f != NULL, "%s", e.msg);
+  gr_mesh_free(m);
+  return f;
+}
+
+/* key of f in the window lo..hi about origin (ox, oy, oz); "" when none */
+static void key_at(const gr_field *f, const double lo[3], const double hi[3], double ox, double oy, double oz, char k[65]) {
+  double o[3] = {ox, oy, oz};
+  gr_err e;
+  gr_err_clear(&e);
+  int rc = gr_domain_local_key(f, lo, hi, o, k, &e);
+  CHECK(rc >= 0, "%s", e.msg);
+  if (rc != 1) k[0] = 0;
+}
+
+TEST(local_key_of_a_box) {
+  gr_field *A = box_solid(0, 0, 0), *B = box_solid(0, 0, 1), *C = box_solid(0, 1e-5, 0);
+  /* a voxel's window: 2 mm grown by 1 mm, z by 0.5 mm (the box is 2 mm high) */
+  double lo[3] = {-1, -1, -0.5}, hi[3] = {3, 3, 2.5};
+  char a2[65], a4[65], a5[65], a0[65], b2[65], b5[65], c2[65], x[65];
+  key_at(A, lo, hi, 2, 0, 0, a2);
+  key_at(A, lo, hi, 4, 0, 0, a4);
+  key_at(A, lo, hi, 5, 0, 0, a5);
+  key_at(A, lo, hi, 0, 0, 0, a0);
+  key_at(B, lo, hi, 2, 0, 0, b2);
+  key_at(B, lo, hi, 5, 0, 0, b5); /* its window holds the split face's centre vertex (6, 2, 0) */
+  key_at(C, lo, hi, 2, 0, 0, c2);
+  CHECK(strlen(a2) == 64, "a box of an STL solid has a key");
+  CHECK(!strcmp(a2, a4) && !strcmp(a2, a5), "windows translated along the faces y = 0, z = 0 and 2 share a key");
+  CHECK(strcmp(a2, a0) != 0, "the window at x = 0 holds the face x = 0 too: another key");
+  CHECK(!strcmp(a2, b2) && !strcmp(a2, b5), "the bottom cut into four triangles is the same boundary");
+  CHECK(strcmp(a2, c2) != 0, "the face y = 0 moved by 10 nm is another boundary");
+  /* windows with no boundary: inside ones share, an outside one differs */
+  double l2[3] = {0, 0, 0}, h2[3] = {0.5, 0.5, 0.5};
+  char in1[65], in2[65];
+  key_at(A, l2, h2, 5, 1.5, 0.7, in1);
+  key_at(A, l2, h2, 7, 1.5, 0.7, in2);
+  key_at(A, l2, h2, 20, 1.5, 0.7, x);
+  CHECK(strlen(in1) == 64 && !strcmp(in1, in2), "two windows wholly inside share a key");
+  CHECK(strcmp(in1, x) != 0, "a window wholly outside has another key");
+  /* an expression domain has none */
+  gr_err e;
+  gr_err_clear(&e);
+  gr_field *ex = gr_field_expr("x - 5", &e);
+  key_at(ex, lo, hi, 2, 0, 0, x);
+  CHECK(x[0] == 0, "an expression domain has no key");
+  gr_field_free(ex);
+  gr_field_free(A);
+  gr_field_free(B);
+  gr_field_free(C);
+}
+
 int main(void) {
   RUN(cylinder_squared);
   RUN(distance_probed_over_box);
   RUN(distance_kept_nan_named);
   RUN(grid_near_boundary_only);
+  RUN(local_key_of_a_box);
   DONE();
 }
