@@ -139,8 +139,10 @@ static double hatch_offset(const gr_job *j) {
 /* Contours of boundary voxel tl (sides in mask): the template's cut by the
  * sides moved in by b, plus the side segments; voxel-local, into s->fl. */
 static int boundary_contours(const gr_job *j, gr_asm_scratch *s, const gr_tlayer *tl, int mask) {
-  double lo[2], hi[2];
-  side_box(j, mask, j->o.beam_offset, lo, hi);
+  double lo[2], hi[2], lof[2], hif[2];
+  side_box(j, mask, j->o.beam_offset, lof, hif);
+  /* the contours kept to GR_FACE_EPS outside the moved sides (template.h) */
+  side_box(j, mask, j->o.beam_offset - GR_FACE_EPS, lo, hi);
   gr_layer_clear(s->fl, 0);
   for (size_t b = 0; b < tl->paths->nb; b++) {
     const gr_block *bk = &tl->paths->b[b];
@@ -151,7 +153,7 @@ static int boundary_contours(const gr_job *j, gr_asm_scratch *s, const gr_tlayer
   for (size_t b = 0; tl->faces && b < tl->faces->nb; b++) {
     const gr_block *bk = &tl->faces->b[b];
     if (!((mask >> bk->laser) & 1)) continue;
-    if (gr_clip_poly(tl->faces->xy + 2 * bk->start, bk->n, 0, bk->kind, 2, lo, hi, s->fl, &s->cbuf, &s->capcbuf))
+    if (gr_clip_poly(tl->faces->xy + 2 * bk->start, bk->n, 0, bk->kind, 2, lof, hif, s->fl, &s->cbuf, &s->capcbuf))
       return GR_EMEM;
   }
   s->fl->thin_walls = tl->paths->thin_walls;

@@ -128,15 +128,16 @@ static int face_lines(const gr_job_opts *o, gr_tlayer *tl) {
         }
       }
       qsort(cr, f.nc, sizeof *cr, dbl_cmp);
-      /* intervals of [0, L] where the value is <= -c: sample, then bisect the ends */
+      /* intervals of [0, L] where the value is <= -c - GR_FACE_EPS: sample, then bisect the ends */
       int ns = (int)ceil(L / step);
-      double t0 = 0, v0 = fline_value(&f, 0) + c, start = v0 <= 0 ? 0 : NAN;
+      double ce = c + GR_FACE_EPS;
+      double t0 = 0, v0 = fline_value(&f, 0) + ce, start = v0 <= 0 ? 0 : NAN;
       for (int q = 1; q <= ns && rc == GR_OK; q++) {
-        double t1 = q == ns ? L : q * step, v1 = fline_value(&f, t1) + c;
+        double t1 = q == ns ? L : q * step, v1 = fline_value(&f, t1) + ce;
         if ((v0 <= 0) != (v1 <= 0)) {
           double lo = t0, hi = t1, vlo = v0;
           for (int it = 0; it < 40 && hi - lo > 1e-7; it++) {
-            double m = 0.5 * (lo + hi), vm = fline_value(&f, m) + c;
+            double m = 0.5 * (lo + hi), vm = fline_value(&f, m) + ce;
             if ((vm <= 0) == (vlo <= 0)) { lo = m; vlo = vm; } else hi = m;
           }
           double tc = 0.5 * (lo + hi);

@@ -57,6 +57,14 @@ void gr_tmpl_free(gr_tmpl *t);
 /* Margin of a template's slice window around the voxel (mm): whole slice
  * cells, wide enough for the contours and hatch region of the voxel's edge. */
 double gr_tmpl_window(const gr_job_opts *o);
+
+/* Where the section's edge runs along a voxel's outer side (a domain whose
+ * face lies on the part's box), the contour at c and the side moved in by c
+ * coincide to the offset's tolerance (1e-6 mm): the side's segment is
+ * taken only where the section reaches more than this beyond it (mm), and
+ * contours are kept to this outside it, so that one of the two is scanned,
+ * not both, nor neither. */
+#define GR_FACE_EPS 5e-6
 /* Compute template layers [qa, qb) (indices into t) from the voxel's field f,
  * through the shared closest points tab if not NULL. Thread-safe for
  * disjoint layer ranges. */

@@ -1,36 +1,38 @@
 -- Trimmed voxels that see the same piece of an STL domain's boundary share
--- a template (issue 14). A box part of 11 x 3 x 2 mm as an STL, 0.5 mm
--- inside a box of 6 x 2 x 1 cells of 2 mm (every voxel within the skin's
--- reach of a face, so all 12 trimmed). A voxel's template needs the
--- boundary within its window grown by the skin and a quarter cell (under
--- 1.5 mm here): along x, the four middle voxels of a row see the same faces
--- (y = 0.5 or y = 3.5, z = 0 and 2), the end ones also x = 0.5 or x = 11.5;
--- so 3 templates per row, 6 in all, against 12 when computed directly. The
--- section is checked against the box: the outer contour is the box inset
--- by the beam offset b, the skin's inner edge the box inset by the skin
--- less b.
+-- a template (issue 14). A box part as an STL in a box of 6 x 2 x 1 cells of
+-- 2 mm, every voxel within the skin's reach of a face, so all 12 trimmed.
+-- A voxel's template needs the boundary within its window grown by the skin
+-- and a quarter cell (under 1.5 mm here): along x, the four middle voxels of
+-- a row see the same faces (y = Y0 or y = Y1, z = 0 and 2), the end ones
+-- also x = X0 or x = X1; so 3 templates per row, 6 in all, against 12 when
+-- computed directly. The section is checked against the box: the outer
+-- contour is the box inset by the beam offset b, the skin's inner edge the
+-- box inset by the skin less b. Two parts: 0.5 mm inside the box of cells,
+-- and the box of cells itself, whose faces are the part's box too: there
+-- the contour along the faces must be scanned once (it was also added as
+-- short open pieces along the sides, 45 in one layer).
 local t = require "gradus.testing"
 local lattice = require "gradus.lattice"
 local tmp = t.tmpdir()
-local stl = tmp .. "/box.stl"
 
--- the box 0.5..11.5 x 0.5..3.5 x 0..2 as 12 outward triangles
-local V = {}
-local X0, X1, Y0, Y1 = 0.5, 11.5, 0.5, 3.5
-for k = 0, 7 do V[k] = { k & 1 == 1 and X1 or X0, k >> 1 & 1 == 1 and Y1 or Y0, (k >> 2 & 1) * 2 } end
-local F = { { 0, 2, 3 }, { 0, 3, 1 }, { 4, 5, 7 }, { 4, 7, 6 }, { 0, 1, 5 }, { 0, 5, 4 },
-  { 2, 6, 7 }, { 2, 7, 3 }, { 0, 4, 6 }, { 0, 6, 2 }, { 1, 3, 7 }, { 1, 7, 5 } }
-local L = { "solid box" }
-for _, f in ipairs(F) do
-  L[#L + 1] = "facet normal 0 0 0\nouter loop"
-  for _, k in ipairs(f) do L[#L + 1] = ("vertex %g %g %g"):format(V[k][1], V[k][2], V[k][3]) end
-  L[#L + 1] = "endloop\nendfacet"
+-- the box X0..X1 x Y0..Y1 x 0..2 as 12 outward triangles, into file `path`
+local function box_stl(path, X0, X1, Y0, Y1)
+  local V = {}
+  for k = 0, 7 do V[k] = { k & 1 == 1 and X1 or X0, k >> 1 & 1 == 1 and Y1 or Y0, (k >> 2 & 1) * 2 } end
+  local F = { { 0, 2, 3 }, { 0, 3, 1 }, { 4, 5, 7 }, { 4, 7, 6 }, { 0, 1, 5 }, { 0, 5, 4 },
+    { 2, 6, 7 }, { 2, 7, 3 }, { 0, 4, 6 }, { 0, 6, 2 }, { 1, 3, 7 }, { 1, 7, 5 } }
+  local L = { "solid box" }
+  for _, f in ipairs(F) do
+    L[#L + 1] = "facet normal 0 0 0\nouter loop"
+    for _, k in ipairs(f) do L[#L + 1] = ("vertex %g %g %g"):format(V[k][1], V[k][2], V[k][3]) end
+    L[#L + 1] = "endloop\nendfacet"
+  end
+  L[#L + 1] = "endsolid box\n"
+  gradus.write_file(path, table.concat(L, "\n"))
 end
-L[#L + 1] = "endsolid box\n"
-gradus.write_file(stl, table.concat(L, "\n"))
 
 local b, G = 0.05, 5 -- beam offset (mm); the layer checked (z = 0.9 mm)
-local function run(kb)
+local function run(kb, stl)
   local p = lattice.params()
   p.cells, p.kb, p.layers, p.res, p.mode, p.layer = "6,2,1", kb, G .. ":" .. G, 20, "exact", 0.2
   p.thickness, p.kb_store, p.hatch, p.beam_offset = "0.08", "none", 0.1, b
@@ -63,26 +65,42 @@ local function measure(layer)
   return m
 end
 
-t.test("trimmed voxels along a face share templates; the section is the box's", function()
-  local st, kept = run(tmp .. "/kb")
-  local sd, kd = run("off")
+local function check(X0, X1, Y0, Y1)
+  local stl = ("%s/box_%g.stl"):format(tmp, X0)
+  box_stl(stl, X0, X1, Y0, Y1)
+  local st, kept = run(tmp .. "/kb", stl)
+  local sd, kd = run("off", stl)
   t.eq(st.trimmed_voxels, 12, "every voxel trimmed")
   t.eq(st.trimmed_templates, 6, "the four middle voxels of each row share one template")
   t.eq(sd.trimmed_templates, 12, "computed directly, every trimmed voxel on its own")
-  local m, md = measure(kept[G]), measure(kd[G])
-  t.eq(m.open, 0, "every contour closed")
-  -- the part's faces: the box inset by b, one ring
-  local W, H = X1 - X0 - 2 * b, Y1 - Y0 - 2 * b
-  t.near(m.ring.area, W * H, 1e-6 * W * H, "outer ring's area")
-  local want = { X0 + b, Y0 + b, X1 - b, Y1 - b }
-  for k = 1, 4 do t.near(m.ring.box[k], want[k], 1e-6, "outer ring, bound " .. k) end
-  -- the skin's inner edge (d = -skin) inset by b: the largest hole spans the box less skin - b
-  local s = 0.3 - b
-  want = { X0 + s, Y0 + s, X1 - s, Y1 - s }
-  for k = 1, 4 do t.near(m.hole.box[k], want[k], 1e-6, "skin's inner edge, bound " .. k) end
+  for _, m in ipairs({ measure(kept[G]), measure(kd[G]) }) do
+    t.eq(m.open, 0, "every contour closed")
+    -- the part's faces: the box inset by b, one ring
+    local W, H = X1 - X0 - 2 * b, Y1 - Y0 - 2 * b
+    -- (where the part's corner is the box of cells' corner, the ring cuts it by one slice cell,
+    -- as it did before the templates were shared: a known defect, bounded here)
+    local cut = X0 == 0 and 4 * 0.5 * 0.05 ^ 2 or 0
+    t.ok(m.ring.area <= W * H + 1e-6 and m.ring.area >= W * H - cut - 1e-6,
+      ("outer ring's area %.6f mm^2, want %.6f less at most %.4f"):format(m.ring.area, W * H, cut))
+    local want = { X0 + b, Y0 + b, X1 - b, Y1 - b }
+    for k = 1, 4 do t.near(m.ring.box[k], want[k], 1e-6, "outer ring, bound " .. k) end
+    -- the skin's inner edge (d = -skin) inset by b: the largest hole spans the box less skin - b
+    local s = 0.3 - b
+    want = { X0 + s, Y0 + s, X1 - s, Y1 - s }
+    for k = 1, 4 do t.near(m.hole.box[k], want[k], 1e-6, "skin's inner edge, bound " .. k) end
+  end
   -- the shared templates give the section the direct computation gives
-  t.near(m.c, md.c, 1e-5 * md.c, "contour length against the direct computation")
+  local m, md = measure(kept[G]), measure(kd[G])
+  t.near(m.c, md.c, 1e-4 * md.c, "contour length against the direct computation")
   t.near(m.h, md.h, 1e-4 * md.h, "hatch length against the direct computation")
+end
+
+t.test("trimmed voxels along a face share templates; the section is the box's", function()
+  check(0.5, 11.5, 0.5, 3.5)
+end)
+
+t.test("a part whose faces are the box of cells' is contoured once along them", function()
+  check(0, 12, 0, 4)
 end)
 
 os.execute("rm -rf '" .. tmp .. "'")
