@@ -12,29 +12,16 @@
 -- `-D extra='-D kb_store=all'` passes options to every job.
 local sizes_s = gradus.param("sizes", "2,3,4", { help = "cube sizes n (cells per side), comma-separated" })
 local extra = gradus.param("extra", "", { help = "more -D options for every job" })
-local exe = gradus.root .. "/build/gradus"
+local benchjob = require "gradus.benchjob"
 local tmp = os.getenv("TMPDIR") or "/tmp"
 local dir = tmp .. "/gradus_bench_continuous." .. tostring(os.time()) .. tostring(math.random(1e6))
 gradus.mkdir(dir)
 local CONT = "0.1+0.04*sin(x/3)*cos(y/2.5)+0.004*z"
 
--- one job; returns its stats, its CPU seconds (user + system of the child) and wall seconds
+-- one job: its stats, CPU seconds (user + system of the child) and wall seconds
 local function run(name, n, thickness)
-  local stats, cpu = dir .. "/" .. name .. ".yaml", dir .. "/" .. name .. ".cpu"
-  local cmd = ("'%s' run '%s/recipes/lattice.lua' -D cells=%d,%d,%d -D format=binary -D 'thickness=%s' " ..
-    "-D kb='%s/kb_%s' %s -q -o '%s/%s.cli' --stats '%s'")
-    :format(exe, gradus.root, n, n, n, thickness, dir, name, extra, dir, name, stats)
-  local t0 = gradus.clock()
-  local ok = os.execute(("bash -c %q > '%s'"):format(cmd .. " >/dev/null && times", cpu))
-  local wall = gradus.clock() - t0
-  if not ok then error("benchmark run '" .. name .. "' failed") end
-  local f = assert(io.open(cpu))
-  local text = f:read("a")
-  f:close()
-  -- `times` prints the shell's own times, then its children's: "0m1.5s 0m0.1s"
-  local m1, s1, m2, s2 = text:match("\n(%d+)m([%d.]+)s%s+(%d+)m([%d.]+)s")
-  if not m1 then error("cannot read the CPU time of run '" .. name .. "': " .. text) end
-  return gradus.yaml.load(stats), m1 * 60 + s1 + m2 * 60 + s2, wall
+  return benchjob.run(dir, name, ("-D cells=%d,%d,%d -D format=binary -D 'thickness=%s' -D kb='%s/kb_%s' %s")
+    :format(n, n, n, thickness, dir, name, extra))
 end
 
 print(("continuous grading, P sheet, cell 2 mm, layer 0.04, exact mode, res 40, T = %s %s"):format(CONT, extra))

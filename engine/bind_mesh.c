@@ -60,6 +60,33 @@ static int l_new(lua_State *L) {
   return 1;
 }
 
+/* gradus.mesh.box({x0, y0, z0}, {x1, y1, z1}) -> the box as 12 outward triangles */
+static double box_coord(lua_State *L, int arg, int k) {
+  luaL_checktype(L, arg, LUA_TTABLE);
+  lua_geti(L, arg, k);
+  int ok;
+  double v = lua_tonumberx(L, -1, &ok);
+  lua_pop(L, 1);
+  if (!ok || !isfinite(v)) luaL_argerror(L, arg, "expected a table of 3 finite numbers (mm)");
+  return v;
+}
+static int l_box(lua_State *L) {
+  double lo[3], hi[3];
+  for (int k = 0; k < 3; k++) lo[k] = box_coord(L, 1, k + 1), hi[k] = box_coord(L, 2, k + 1);
+  for (int k = 0; k < 3; k++)
+    if (!(hi[k] > lo[k])) return luaL_error(L, "gradus.mesh.box: the box is empty along %c (%f >= %f mm)", "xyz"[k], lo[k], hi[k]);
+  static const int F[12][3] = {{0, 2, 3}, {0, 3, 1}, {4, 5, 7}, {4, 7, 6}, {0, 1, 5}, {0, 5, 4},
+                               {2, 6, 7}, {2, 7, 3}, {0, 4, 6}, {0, 6, 2}, {1, 3, 7}, {1, 7, 5}};
+  gr_mesh *m = gr_mesh_new();
+  int bad = !m;
+  for (int v = 0; v < 8 && !bad; v++)
+    bad = gr_mesh_add_vertex(m, v & 1 ? hi[0] : lo[0], v & 2 ? hi[1] : lo[1], v & 4 ? hi[2] : lo[2]) < 0;
+  for (int f = 0; f < 12 && !bad; f++) bad = gr_mesh_add_face(m, F[f][0], F[f][1], F[f][2]) != 0;
+  if (bad) { gr_mesh_free(m); return luaL_error(L, "out of memory"); }
+  gr_push_mesh(L, m);
+  return 1;
+}
+
 /* gradus.mesh.solid(mesh) or mesh:solid() -> the part's signed distance field */
 static int l_solid(lua_State *L) {
   gr_mesh *m = gr_check_mesh(L, 1);
@@ -157,6 +184,8 @@ int gr_open_mesh(lua_State *L) {
   lua_setfield(L, -2, "read");
   lua_pushcfunction(L, l_new);
   lua_setfield(L, -2, "new");
+  lua_pushcfunction(L, l_box);
+  lua_setfield(L, -2, "box");
   lua_pushcfunction(L, l_solid);
   lua_setfield(L, -2, "solid");
   lua_setfield(L, -2, "mesh");

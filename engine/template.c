@@ -274,7 +274,7 @@ int gr_tmpl_layers(const gr_tmpl_in *in, gr_tmpl *t, const gr_field *f, const gr
     if ((rc = tab ? gr_cptab_slice(tab, f, o, q, z, &so, tl->section, e) : gr_slice_field(f, z, &so, tl->section, e))) break;
     gr_rings_translate(tl->section, -o[0], -o[1]);
     tl->area = gr_clip_area(tl->section, box_lo, box_hi);
-    if ((rc = gr_tmpl_paths(opt, tl, 0, e))) break;
+    if ((rc = gr_tmpl_paths(opt, tl, in->sharp, e))) break;
     tl->q[0] = tl->q[1] = tl->q[2] = NAN;
     if (rc == GR_OK && opt->verify) rc = verify_template_layer(opt, tl, gr_layer_angle(opt, g0 + t->j0 + q), e);
   }

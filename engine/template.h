@@ -49,6 +49,9 @@ typedef struct gr_tmpl_in {
   const gr_grid *grid;
   double vo[3];         /* the voxel's min corner, mm */
   int g0;               /* the voxel row's first global layer */
+  int sharp;            /* 1: the section has corners (a trimmed voxel: the domain's faces
+                           meet each other and the lattice); its contours are offset with
+                           chords refined, as at face steps, so convex corners stay sharp */
 } gr_tmpl_in;
 
 /* A template for local layers [ja, jb), layers empty; NULL when out of memory. */

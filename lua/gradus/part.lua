@@ -44,9 +44,19 @@ function M.box(p)
   end
   local cut -- nil: no face inside a cell
   if #terms == 1 then cut = terms[1] elseif #terms == 2 then cut = ("max(%s,%s)"):format(terms[1], terms[2]) end
+  -- with no domain of the user's, the cut as a box solid (an STL-like domain: trimmed voxels
+  -- along a cut face see the same boundary and share templates), its other faces 10 cells away
+  local function cut_solid()
+    local lo, top = {}, {}
+    for a = 1, 3 do
+      lo[a] = o[a] - 10 * C[a]
+      top[a] = (a < 3 and hi[a] < o[a] + cells[a] * C[a] - 1e-9) and hi[a] or o[a] + (cells[a] + 10) * C[a]
+    end
+    return gradus.mesh.box(lo, top):solid()
+  end
   local function domain(d)
     if not cut then return d end
-    if d == nil then return cut end
+    if d == nil then return cut_solid() end
     if type(d) == "string" then return ("max((%s),%s)"):format(d, cut) end
     return gradus.field.max(d, gradus.field.expr(cut))
   end

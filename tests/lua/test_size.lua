@@ -24,6 +24,10 @@ t.test("size 5 x 4 x 2.4 mm with 2 mm cells: cut and contoured at x = 5, 60 laye
   local out = tmp .. "/s.cli"
   local st = lattice.run(params { size = "5,4,2.4" }, out)
   t.eq(st.layers, 60, "layers = 2.4 / 0.04")
+  -- the cut at x = 5 is a box solid (gradus.part), its other faces 10 cells away: the column of
+  -- voxels it trims (2 per row of voxels) all see the same face and share one template
+  t.eq(st.trimmed_voxels, 4, "the voxels the cut at x = 5 trims")
+  t.eq(st.trimmed_templates, 1, "one template for the voxels along the cut")
   local cli = gradus.cli.read(out)
   t.eq(#cli.layers, 60, "layers in the file")
   t.near(cli.layers[60]:z(), 2.4, 1e-6, "top layer at the part's height")
