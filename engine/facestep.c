@@ -239,25 +239,32 @@ static const gr_tlayer *voxel_layer(const gr_job *j, int v, int jl) {
   return &t->l[jl - t->j0];
 }
 
-/* Where ring set r crosses the line x = pos (vert) or y = pos, along it,
- * within [0, L] (L: the voxel's length along the line): sorted into *c (grown), count returned; -1 out of memory. */
-static long face_crossings(const gr_rings *r, int vert, double pos, double L, double **c, size_t *cap) {
-  long n = 0;
+/* Where ring set r crosses the lines x = pos[q] (vert) or y = pos[q], q <
+ * NQ, along them, within [0, L] (L: the voxel's length along the lines):
+ * one pass over the edges, each line's crossings sorted into c[q] (grown),
+ * counts into n[q]; -1 out of memory, else 0. */
+enum { NQ = 4 };
+static int face_crossings(const gr_rings *r, int vert, const double pos[NQ], double L, double *c[NQ],
+                          size_t cap[NQ], long n[NQ]) {
+  for (int q = 0; q < NQ; q++) n[q] = 0;
   for (size_t i = 0; i < r->nrings; i++) {
     const double *p = gr_ring_xy(r, i);
     size_t m = gr_ring_len(r, i);
     for (size_t a = 0; a < m; a++) {
       const double *P = p + 2 * a, *Q = p + 2 * ((a + 1) % m);
       double pa = vert ? P[0] : P[1], qa = vert ? Q[0] : Q[1];
-      if ((pa > pos) == (qa > pos)) continue;
-      double pl = vert ? P[1] : P[0], ql = vert ? Q[1] : Q[0], t = pl + (pos - pa) * (ql - pl) / (qa - pa);
-      if (t < 0 || t > L) continue;
-      if (gr_grow(c, cap, (size_t)n + 1, sizeof **c)) return -1;
-      (*c)[n++] = t;
+      for (int q = 0; q < NQ; q++) {
+        if ((pa > pos[q]) == (qa > pos[q])) continue;
+        double pl = vert ? P[1] : P[0], ql = vert ? Q[1] : Q[0], t = pl + (pos[q] - pa) * (ql - pl) / (qa - pa);
+        if (t < 0 || t > L) continue;
+        if (gr_grow(&c[q], &cap[q], (size_t)n[q] + 1, sizeof *c[q])) return -1;
+        c[q][n[q]++] = t;
+      }
     }
   }
-  if (n > 1) qsort(*c, (size_t)n, sizeof **c, dbl_cmp);
-  return n;
+  for (int q = 0; q < NQ; q++)
+    if (n[q] > 1) qsort(c[q], (size_t)n[q], sizeof *c[q], dbl_cmp);
+  return 0;
 }
 
 /* 1 if the section a (the voxel's, continued past its side with its own
@@ -269,17 +276,21 @@ static long face_crossings(const gr_rings *r, int vert, double pos, double L, do
 static int face_differs(const gr_rings *a, const gr_rings *b, int side, const double cell[2], double h) {
   int vert = side < 2, r = 0;
   double Lc = vert ? cell[0] : cell[1], L = vert ? cell[1] : cell[0]; /* across, along */
-  double *ca = NULL, *cb = NULL;
-  size_t capa = 0, capb = 0;
-  for (int q = 0; q < 4 && r == 0; q++) {
-    double s = q * h / 3, pa = (side & 1) ? Lc + s : -s, pb = (side & 1) ? s : Lc - s;
-    long na = face_crossings(a, vert, pa, L, &ca, &capa), nb = face_crossings(b, vert, pb, L, &cb, &capb);
-    r = na < 0 || nb < 0 ? -1 : na != nb;
-    for (long k = 0; r == 0 && k < na; k++)
-      if (fabs(ca[k] - cb[k]) > FACE_TOL) r = 1;
+  double pa[NQ], pb[NQ], *ca[NQ] = {NULL}, *cb[NQ] = {NULL};
+  size_t capa[NQ] = {0}, capb[NQ] = {0};
+  long na[NQ], nb[NQ];
+  for (int q = 0; q < NQ; q++) {
+    double s = q * h / 3;
+    pa[q] = (side & 1) ? Lc + s : -s;
+    pb[q] = (side & 1) ? s : Lc - s;
   }
-  free(ca);
-  free(cb);
+  if (face_crossings(a, vert, pa, L, ca, capa, na) || face_crossings(b, vert, pb, L, cb, capb, nb)) r = -1;
+  for (int q = 0; q < NQ && r == 0; q++) {
+    r = na[q] != nb[q];
+    for (long k = 0; r == 0 && k < na[q]; k++)
+      if (fabs(ca[q][k] - cb[q][k]) > FACE_TOL) r = 1;
+  }
+  for (int q = 0; q < NQ; q++) free(ca[q]), free(cb[q]);
   return r;
 }
 

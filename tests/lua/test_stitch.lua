@@ -154,8 +154,10 @@ t.test("a loop no laser reaches whole is split with the overlap and counted", fu
   end)
   t.ok(pieces >= 2 * want, "each split loop in at least two pieces")
   t.eq(outside, 0, "every piece inside its laser's field")
-  -- each piece runs on by half the stitch at both ends: pieces overlap by 0.5 mm
-  t.near(plen - wantlen, 0.5 * pieces, 1e-6, "pieces = loops + 0.5 mm per joint")
+  -- each piece runs on by half the stitch at both ends: pieces overlap by 0.5 mm (to 1e-3 mm in
+  -- all: where a loop meets the box's side its joint carries a few nm, the contour being kept to
+  -- 5e-6 mm past the side, GR_FACE_EPS, and the pieces cut there differ from the loop by that)
+  t.near(plen - wantlen, 0.5 * pieces, 1e-3, "pieces = loops + 0.5 mm per joint")
   t.raises(function() lasers.normalize({ lasers = { {} }, stitch = -1 }, "p.yaml") end, "p.yaml: stitch: must be in %[0, 10%] mm")
 end)
 
