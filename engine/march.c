@@ -615,7 +615,12 @@ static int chord_passes(gr_rings *r, unsigned char **okp, const unsigned char *m
   pass_done:
     free(ax); free(ay); free(bx); free(by); free(fa); free(fb); free(A); free(B);
     free(root); free(ipt); free(ins); free(seg); free(ok2); free(cm); free(cn); free(rof); free(viac);
-    if (rc || nins == 0) break;
+    if (rc || nins == 0) {
+      /* the last pass checked every chord still unchecked and inserted
+       * nothing: all are checked now (a later call checks only new ones) */
+      if (!rc) memset(ok, 1, r->npts);
+      break;
+    }
   }
   gr_rings_free(nr);
   *okp = ok;

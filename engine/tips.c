@@ -68,11 +68,14 @@ static int crest(const tip_ctx *c, const double q[2], const double n[2], double 
     int best = 0;
     for (int k = 1; k < TIP_SAMPLES; k++)
       if (c->s * v[k] > c->s * v[best]) best = k;
+    if (c->s * v[best] > *h) { *h = c->s * v[best]; *t = lo + best * dt; }
     if (round == 0) {
       *span = c->s * v[0] < 0 && c->s * v[TIP_SAMPLES - 1] < 0;
-      if (!*span) return GR_OK;
+      /* every sample below zero by more than 1.5 spacings: the field's slope
+       * (about 1, a distance) keeps the crest below zero between them, and
+       * below it on either side of a jump; most tips stop here */
+      if (!*span || *h < -1.5 * dt) return GR_OK;
     }
-    if (c->s * v[best] > *h) { *h = c->s * v[best]; *t = lo + best * dt; }
     double nlo = lo + (best - 1) * dt, nhi = lo + (best + 1) * dt;
     lo = fmax(nlo, lo);
     hi = fmin(nhi, hi);
@@ -177,10 +180,11 @@ static int follow(const tip_ctx *c, const double T[2], const double u0[2], doubl
   }
 }
 
-/* Does the chain P, seq[0..m), N cross a chord of r (other than the two of
- * the tip vertex tg, which it replaces)? A grown tip that ran into another
- * part of the boundary would fold the ring: it is left as it was. */
-static int chain_crosses(const gr_rings *r, size_t tg, const double *P, const double *seq, size_t m, const double *N) {
+/* Does the chain P, seq[0..m), N cross a chord of r (other than those of
+ * the tip vertices tg, tg2, which it replaces)? A grown tip that ran into
+ * another part of the boundary would fold the ring: it is left as it was. */
+static int chain_crosses(const gr_rings *r, size_t tg, size_t tg2, const double *P, const double *seq, size_t m,
+                         const double *N) {
   double lo[2] = {fmin(P[0], N[0]), fmin(P[1], N[1])}, hi[2] = {fmax(P[0], N[0]), fmax(P[1], N[1])};
   for (size_t k = 0; k < m; k++)
     for (int c = 0; c < 2; c++) { lo[c] = fmin(lo[c], seq[2 * k + c]); hi[c] = fmax(hi[c], seq[2 * k + c]); }
@@ -189,7 +193,7 @@ static int chain_crosses(const gr_rings *r, size_t tg, const double *P, const do
     const double *p = gr_ring_xy(r, i);
     for (size_t k = 0; k < len; k++) {
       size_t k1 = (k + 1) % len;
-      if (st + k == tg || st + k1 == tg) continue;
+      if (st + k == tg || st + k1 == tg || st + k == tg2 || st + k1 == tg2) continue;
       const double *a = p + 2 * k, *b = p + 2 * k1;
       if (fmax(a[0], b[0]) < lo[0] || fmin(a[0], b[0]) > hi[0] || fmax(a[1], b[1]) < lo[1] || fmin(a[1], b[1]) > hi[1])
         continue;
@@ -204,23 +208,29 @@ static int chain_crosses(const gr_rings *r, size_t tg, const double *P, const do
   return 0;
 }
 
-/* Tip vertex k of ring i (global index g): follow it; on growth, *seq (malloc'd,
- * *m points) holds the points that replace it, in the ring's order. */
-static int grow_tip(const gr_rings *r, size_t i, size_t k, gr_slice_fn fn, void *ud, double tol, const gr_ms_win *w,
-                    double **seq, size_t *m, gr_err *e) {
-  size_t len = gr_ring_len(r, i);
-  const double *p = gr_ring_xy(r, i), *P = p + 2 * ((k + len - 1) % len), *T = p + 2 * k, *N = p + 2 * ((k + 1) % len);
+/* Tip at vertex k of ring i, or (ncap = 2) at the short chord from k to
+ * k + 1 across a sliver the chord pass stopped in (no shorter than two
+ * chord tolerances, so not split): follow it; on growth, *seq (malloc'd, *m
+ * points) holds the points that replace vertex k (and k + 1, dropped). */
+#define TIP_CAP 2e-3
+static int grow_tip(const gr_rings *r, size_t i, size_t k, int ncap, gr_slice_fn fn, void *ud, double tol,
+                    const gr_ms_win *w, double **seq, size_t *m, gr_err *e) {
+  size_t len = gr_ring_len(r, i), st = r->start[i];
+  const double *p = gr_ring_xy(r, i), *P = p + 2 * ((k + len - 1) % len), *T1 = p + 2 * k;
+  const double *T2 = p + 2 * ((k + ncap - 1) % len), *N = p + 2 * ((k + ncap) % len);
   *seq = NULL;
   *m = 0;
-  double ax = P[0] - T[0], ay = P[1] - T[1], cx = N[0] - T[0], cy = N[1] - T[1];
-  double la = hypot(ax, ay), lc = hypot(cx, cy);
+  double T[2] = {0.5 * (T1[0] + T2[0]), 0.5 * (T1[1] + T2[1])};
+  double ax = P[0] - T1[0], ay = P[1] - T1[1], cx = N[0] - T2[0], cy = N[1] - T2[1];
+  double la = hypot(ax, ay), lc = hypot(cx, cy), cap = hypot(T2[0] - T1[0], T2[1] - T1[1]);
   if (!(la > tol && lc > tol) || (ax * cx + ay * cy) < TIP_COS * la * lc || !in_window(w, T)) return GR_OK;
+  if (ncap == 2 && !(cap > 0 && cap <= TIP_CAP && len >= 4)) return GR_OK;
   double u[2] = {-(ax / la + cx / lc), -(ay / la + cy / lc)}, lu = hypot(u[0], u[1]);
   if (!(lu > 0)) return GR_OK;
   u[0] /= lu;
   u[1] /= lu;
   /* the ring turns right at a void tip (the solid is on its left) */
-  tip_ctx c = {fn, ud, (-ax) * cy - (-ay) * cx < 0 ? 1 : -1, tol, w};
+  tip_ctx c = {fn, ud, (-ax) * (N[1] - T1[1]) - (-ay) * (N[0] - T1[0]) < 0 ? 1 : -1, tol, w};
   tip_path *tp = malloc(sizeof *tp);
   if (!tp) return gr_fail(e, GR_EMEM, "out of memory following a tip");
   int grown = 0, rc = follow(&c, T, u, w->reach, tp, &grown, e);
@@ -234,7 +244,7 @@ static int grow_tip(const gr_rings *r, size_t i, size_t k, gr_slice_fn fn, void 
     for (size_t j = 0; !rc && j < nout; j++, q++) { s[2 * q] = out[2 * j]; s[2 * q + 1] = out[2 * j + 1]; }
     if (!rc) { s[2 * q] = tp->end[0]; s[2 * q + 1] = tp->end[1]; q++; }
     for (size_t j = nback; !rc && j-- > 0; q++) { s[2 * q] = back[2 * j]; s[2 * q + 1] = back[2 * j + 1]; }
-    if (!rc && chain_crosses(r, r->start[i] + k, P, s, q, N)) { free(s); s = NULL; q = 0; }
+    if (!rc && chain_crosses(r, st + k, st + (k + ncap - 1) % len, P, s, q, N)) { free(s); s = NULL; q = 0; }
     *seq = s;
     *m = q;
   }
@@ -243,9 +253,10 @@ static int grow_tip(const gr_rings *r, size_t i, size_t k, gr_slice_fn fn, void 
 }
 
 /* The rings rebuilt with the tips that grew: tip vertex g replaced by
- * seq[g]; the chords from new points and from each tip's predecessor are
+ * seq[g], vertices marked in drop left out; the chords from new points and from each tip's predecessor are
  * marked unchecked in the new *okp. */
-static int rebuild(gr_rings *r, unsigned char **okp, double **seq, const size_t *m, size_t added, gr_err *e) {
+static int rebuild(gr_rings *r, unsigned char **okp, double **seq, const size_t *m, const unsigned char *drop,
+                   size_t added, gr_err *e) {
   gr_rings *nr = gr_rings_new();
   unsigned char *ok = *okp, *ok2 = calloc(r->npts + added + 1, 1);
   int rc = nr && ok2 ? GR_OK : gr_fail(e, GR_EMEM, "out of memory following tips");
@@ -255,6 +266,7 @@ static int rebuild(gr_rings *r, unsigned char **okp, double **seq, const size_t 
     const double *p = gr_ring_xy(r, i);
     for (size_t k = 0; k < len && !rc; k++) {
       size_t g = st + k, gn = st + (k + 1) % len;
+      if (drop[g]) continue;
       if (seq[g]) {
         for (size_t j = 0; j < m[g] && !rc; j++) {
           rc = gr_rings_point(nr, seq[g][2 * j], seq[g][2 * j + 1]);
@@ -281,19 +293,29 @@ int gr_ms_follow_tips(gr_rings *r, unsigned char **okp, gr_slice_fn fn, void *ud
   size_t n0 = r->npts;
   double **seq = calloc(n0 + 1, sizeof *seq);
   size_t *m = calloc(n0 + 1, sizeof *m), added = 0;
-  int rc = seq && m ? GR_OK : gr_fail(e, GR_EMEM, "out of memory following tips");
+  unsigned char *busy = calloc(n0 + 1, 1), *drop = calloc(n0 + 1, 1);
+  int rc = seq && m && busy && drop ? GR_OK : gr_fail(e, GR_EMEM, "out of memory following tips");
   for (size_t i = 0; i < r->nrings && !rc; i++) {
     size_t len = gr_ring_len(r, i), st = r->start[i];
-    for (size_t k = 0; k < len && !rc && len >= 3; k++) {
-      /* a neighbour of a grown tip keeps its place (its chord is replaced) */
-      if ((k > 0 && seq[st + k - 1]) || (k + 1 == len && seq[st])) continue;
-      rc = grow_tip(r, i, k, fn, ud, tol, w, &seq[st + k], &m[st + k], e);
-      if (!rc && seq[st + k]) { ++*grown; added += m[st + k]; }
-    }
+    for (size_t k = 0; k < len && !rc && len >= 3; k++)
+      for (int ncap = 1; ncap <= 2 && !rc && !seq[st + k]; ncap++) {
+        /* the vertices of a grown tip and its neighbours keep their place */
+        int free_ = 1;
+        for (size_t j = 0; j < (size_t)ncap + 2; j++) free_ &= !busy[st + (k + len - 1 + j) % len];
+        if (!free_) break;
+        rc = grow_tip(r, i, k, ncap, fn, ud, tol, w, &seq[st + k], &m[st + k], e);
+        if (rc || !seq[st + k]) continue;
+        ++*grown;
+        added += m[st + k];
+        for (size_t j = 0; j < (size_t)ncap + 2; j++) busy[st + (k + len - 1 + j) % len] = 1;
+        if (ncap == 2) drop[st + (k + 1) % len] = 1;
+      }
   }
-  if (!rc && *grown) rc = rebuild(r, okp, seq, m, added, e);
+  if (!rc && *grown) rc = rebuild(r, okp, seq, m, drop, added, e);
   for (size_t g = 0; seq && g < n0; g++) free(seq[g]);
   free(seq);
   free(m);
+  free(busy);
+  free(drop);
   return rc;
 }
