@@ -293,7 +293,7 @@ done:
  * bracketing. */
 static int chord_newton(gr_slice_grad_fn gfn, void *ud, double tol, double chord_tol,
                         double *ax, double *ay, double *bx, double *by, size_t *seg, size_t *m,
-                        int *ins, double *ipt, size_t *nins, gr_err *e) {
+                        const unsigned char *must, int *ins, double *ipt, size_t *nins, gr_err *e) {
   size_t n = *m;
   double *mx = malloc(n * sizeof *mx), *my = malloc(n * sizeof *my), *t = calloc(n, sizeof *t);
   double *qx = malloc(n * sizeof *qx), *qy = malloc(n * sizeof *qy), *f = malloc(n * sizeof *f);
@@ -331,9 +331,10 @@ static int chord_newton(gr_slice_grad_fn gfn, void *ud, double tol, double chord
       double step = dn > 0.5 ? -f[i] / dn : NAN;
       if (!isfinite(step) || fabs(t[k] + step) > h) { left[k] = 1; continue; }
       t[k] += step;
-      if (it == 0 && fabs(t[k]) < 0.9 * chord_tol) continue; /* the chord is fine */
-      if (fabs(step) < tol) {                                 /* converged */
-        if (fabs(t[k]) > chord_tol) {
+      int split = must && must[seg[k]];
+      if (!split && it == 0 && fabs(t[k]) < 0.9 * chord_tol) continue; /* the chord is fine */
+      if (fabs(step) < tol) {                                           /* converged */
+        if (split || fabs(t[k]) > chord_tol) {
           ipt[2 * *nins] = mx[k] + t[k] * (bx[k] - mx[k]) / h;
           ipt[2 * *nins + 1] = my[k] + t[k] * (by[k] - my[k]) / h;
           ins[seg[k]] = (int)++*nins;
@@ -474,8 +475,7 @@ static int chord_extend(gr_slice_fn fn, void *ud, size_t m, double *ax, double *
   return rc;
 }
 
-/* Whether segments a-b and c-d cross at a point inside both. */
-static int seg_cross(const double *a, const double *b, const double *c, const double *d) {
+int gr_ms_seg_cross(const double *a, const double *b, const double *c, const double *d) {
   double d1 = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
   double d2 = (b[0] - a[0]) * (d[1] - a[1]) - (b[1] - a[1]) * (d[0] - a[0]);
   double d3 = (d[0] - c[0]) * (a[1] - c[1]) - (d[1] - c[1]) * (a[0] - c[0]);
@@ -496,23 +496,23 @@ static int corner_ok(const gr_rings *r, size_t i, size_t k, const double *R, dou
   for (long j = -span; j <= span; j++) {
     if (j == 0) continue;
     size_t a = (k + (size_t)(j + (long)len)) % len, b = (a + 1) % len;
-    if (seg_cross(A, R, p + 2 * a, p + 2 * b) || seg_cross(R, B, p + 2 * a, p + 2 * b)) return 0;
+    if (gr_ms_seg_cross(A, R, p + 2 * a, p + 2 * b) || gr_ms_seg_cross(R, B, p + 2 * a, p + 2 * b)) return 0;
   }
   return 1;
 }
 
-/* Chord accuracy pass: for each ring segment, find the zero of fn on the
- * normal line through the chord midpoint (bracket +-half the chord); where
- * it lies more than chord_tol from the midpoint, insert it. Repeats until no
- * insertion (at most 12 passes). Rings in `r` are rewritten. */
-int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *ud, double tol,
-                        double chord_tol, const gr_ms_win *w, gr_err *e) {
+/* Chord accuracy passes: for each ring segment not yet checked (*okp[i] = 0
+ * for the chord from point i), find the zero of fn on the normal line
+ * through the chord midpoint (bracket +-half the chord); where it lies more
+ * than chord_tol from the midpoint, or the chord is marked in must (NULL:
+ * none; the first pass only), insert it. Repeats until no insertion (at
+ * most 12 passes). Rings in `r` and *okp are rewritten. */
+static int chord_passes(gr_rings *r, unsigned char **okp, const unsigned char *must, gr_slice_fn fn,
+                        gr_slice_grad_fn gfn, void *ud, double tol, double chord_tol, const gr_ms_win *w, gr_err *e) {
   int rc = GR_OK;
   gr_rings *nr = gr_rings_new();
-  /* ok[i]: the chord from point i was checked (only new chords are checked
-   * in later passes) */
-  unsigned char *ok = calloc(r->npts + 1, 1);
-  if (!nr || !ok) { gr_rings_free(nr); free(ok); return gr_fail(e, GR_EMEM, "out of memory refining chords"); }
+  unsigned char *ok = *okp;
+  if (!nr) return gr_fail(e, GR_EMEM, "out of memory refining chords");
   for (int pass = 0; pass < 12; pass++) {
     size_t n = r->npts;
     /* per candidate chord: bracket ends a, b (+-half the chord along the
@@ -556,7 +556,8 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
       }
     }
     if (m == 0) goto pass_done;
-    if (gfn && (rc = chord_newton(gfn, ud, tol, chord_tol, ax, ay, bx, by, seg, &m, ins, ipt, &nins, e)))
+    if (pass > 0) must = NULL; /* its indices are those of the rings given */
+    if (gfn && (rc = chord_newton(gfn, ud, tol, chord_tol, ax, ay, bx, by, seg, &m, must, ins, ipt, &nins, e)))
       goto pass_done;
     if ((rc = gr_ms_eval(fn, ud, m, ax, ay, fa, e)) || (rc = gr_ms_eval(fn, ud, m, bx, by, fb, e))) goto pass_done;
     if ((rc = chord_extend(fn, ud, m, ax, ay, bx, by, fa, fb, r, rof, seg, w->reach, viac, e))) goto pass_done;
@@ -577,7 +578,7 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
       const double *c = cm + 2 * seg[k], *nn = cn + 2 * seg[k];
       size_t ri = rof[seg[k]];
       if (viac[k] && !corner_ok(r, ri, seg[k] - r->start[ri], root + 2 * k, chord_tol)) continue;
-      if (fabs((root[2 * k] - c[0]) * nn[0] + (root[2 * k + 1] - c[1]) * nn[1]) > chord_tol) {
+      if ((must && must[seg[k]]) || fabs((root[2 * k] - c[0]) * nn[0] + (root[2 * k + 1] - c[1]) * nn[1]) > chord_tol) {
         ipt[2 * nins] = root[2 * k];
         ipt[2 * nins + 1] = root[2 * k + 1];
         ins[seg[k]] = (int)++nins;
@@ -614,9 +615,103 @@ int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *
   pass_done:
     free(ax); free(ay); free(bx); free(by); free(fa); free(fb); free(A); free(B);
     free(root); free(ipt); free(ins); free(seg); free(ok2); free(cm); free(cn); free(rof); free(viac);
-    if (rc || nins == 0) break;
+    if (rc || nins == 0) {
+      /* the last pass checked every chord still unchecked and inserted
+       * nothing: all are checked now (a later call checks only new ones) */
+      if (!rc) memset(ok, 1, r->npts);
+      break;
+    }
   }
   gr_rings_free(nr);
+  *okp = ok;
+  return rc;
+}
+
+/* Where the boundary runs along a jump of the field (a graded sheet's
+ * closest point changing sides of the medial surface), it turns sharply
+ * where the jump meets the zero set of either side; a long chord can cut
+ * such a corner with its midpoint on the curve, and the midpoint check
+ * passes (on the lidinoid graded 0.06 + 0.03 w a chord of 26 um cut a
+ * corner by 1.9 um). Such a chord shows itself at its end: the vertex turns
+ * (by more than 15 degrees), and the chord leaves the curve there:
+ * fn a little way along it (CORNER_PROBE, at most an eighth of the chord)
+ * is off zero by more than CORNER_OFF, where a chord within the tolerance
+ * s of a smooth curve, or one from a true corner of the section at the
+ * vertex (the sheet's offsets meeting on a mirror plane), stays within
+ * 4 s / 8 of it. Those chords, longer than CORNER_LEN and not on the
+ * window's border, are marked in must (sized r->npts) and unchecked in ok,
+ * to be split at their midpoint's root, round after round until shorter.
+ * *nm: how many were marked. */
+#define CORNER_LEN 2e-3
+#define CORNER_TURN 0.9659 /* cos 15 degrees */
+#define CORNER_PROBE 1e-3
+#define CORNER_OFF 1.5e-4
+#define CORNER_ROUNDS 6
+static int corner_marks(const gr_rings *r, unsigned char *ok, unsigned char *must, const gr_ms_win *w,
+                        gr_slice_fn fn, void *ud, size_t *nm, gr_err *e) {
+  size_t nc = 0, cap = 0, *cg = NULL;
+  double *px = NULL, *py = NULL, *pv = NULL;
+  int rc = GR_OK;
+  *nm = 0;
+  for (size_t i = 0; i < r->nrings && !rc; i++) {
+    size_t len = gr_ring_len(r, i), st = r->start[i];
+    const double *p = gr_ring_xy(r, i);
+    for (size_t k = 0; k < len && len >= 3 && !rc; k++) {
+      size_t kp = (k + len - 1) % len, kn = (k + 1) % len;
+      const double *P = p + 2 * kp, *T = p + 2 * k, *N = p + 2 * kn;
+      double ux = T[0] - P[0], uy = T[1] - P[1], vx = N[0] - T[0], vy = N[1] - T[1];
+      double lu = hypot(ux, uy), lv = hypot(vx, vy);
+      if (!(lu > 0 && lv > 0) || ux * vx + uy * vy >= CORNER_TURN * lu * lv) continue;
+      if (w->on && (T[0] == w->lo[0] || T[0] == w->hi[0] || T[1] == w->lo[1] || T[1] == w->hi[1])) continue;
+      for (int side = 0; side < 2 && !rc; side++) {
+        const double *Q = side ? N : P;
+        double L = side ? lv : lu, d = fmin(CORNER_PROBE, L / 8);
+        size_t g = side ? st + k : st + kp; /* the chord's first point */
+        if (!(L > CORNER_LEN) || (side ? on_border(w, T, N) : on_border(w, P, T)) || must[g]) continue;
+        size_t c1 = cap, c2 = cap, c3 = cap;
+        if (gr_grow(&cg, &c1, nc + 1, sizeof *cg) || gr_grow(&px, &c2, nc + 1, sizeof *px) ||
+            gr_grow(&py, &c3, nc + 1, sizeof *py)) {
+          rc = gr_fail(e, GR_EMEM, "out of memory refining chords");
+          break;
+        }
+        cap = c1;
+        cg[nc] = g;
+        px[nc] = T[0] + d * (Q[0] - T[0]) / L;
+        py[nc++] = T[1] + d * (Q[1] - T[1]) / L;
+      }
+    }
+  }
+  if (!rc && nc && !(pv = malloc(nc * sizeof *pv))) rc = gr_fail(e, GR_EMEM, "out of memory refining chords");
+  if (!rc && nc) rc = gr_ms_eval(fn, ud, nc, px, py, pv, e);
+  for (size_t c = 0; c < nc && !rc; c++)
+    if (fabs(pv[c]) > CORNER_OFF && !must[cg[c]]) { must[cg[c]] = 1; ok[cg[c]] = 0; ++*nm; }
+  free(cg); free(px); free(py); free(pv);
+  return rc;
+}
+
+/* Chord accuracy pass over the rings of r; then, with w->tips (field
+ * sections), tips of slivers narrower than the chords followed to their
+ * end (tips.c) and long chords at sharp turns split (corner_marks), the
+ * chords that gives checked in turn. */
+int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *ud, double tol,
+                       double chord_tol, const gr_ms_win *w, gr_err *e) {
+  /* ok[i]: the chord from point i was checked (only new chords are checked
+   * in later passes) */
+  unsigned char *ok = calloc(r->npts + 1, 1);
+  if (!ok) return gr_fail(e, GR_EMEM, "out of memory refining chords");
+  size_t grown = 0;
+  int rc = chord_passes(r, &ok, NULL, fn, gfn, ud, tol, chord_tol, w, e);
+  if (!rc && w->tips) rc = gr_ms_follow_tips(r, &ok, fn, ud, tol, w, &grown, e);
+  if (!rc && grown) rc = chord_passes(r, &ok, NULL, fn, gfn, ud, tol, chord_tol, w, e);
+  for (int round = 0; round < CORNER_ROUNDS && !rc && w->tips; round++) {
+    unsigned char *must = calloc(r->npts + 1, 1);
+    if (!must) { rc = gr_fail(e, GR_EMEM, "out of memory refining chords"); break; }
+    size_t nm = 0;
+    rc = corner_marks(r, ok, must, w, fn, ud, &nm, e);
+    if (!rc && nm) rc = chord_passes(r, &ok, must, fn, gfn, ud, tol, chord_tol, w, e);
+    free(must);
+    if (!nm) break;
+  }
   free(ok);
   return rc;
 }

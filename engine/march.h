@@ -25,8 +25,10 @@ typedef struct gr_ms_grid {
 
 /* The chord pass's window: with `on`, a segment along the window border
  * [lo, hi] is exact; reach (mm, 0: none) bounds how far from a chord a
- * corner it cut off is looked for (four cells of the grid contoured). */
-typedef struct gr_ms_win { int on; double lo[2], hi[2], reach; } gr_ms_win;
+ * corner it cut off is looked for (four cells of the grid contoured), and
+ * how far a tip is followed; tips = 1: tips of slivers are followed along
+ * the field's crest to their end (tips.c; field sections, not offsets). */
+typedef struct gr_ms_win { int on; double lo[2], hi[2], reach; int tips; } gr_ms_win;
 
 /* Parts of the zero set hidden between nodes of one sign (hidden.c): where
  * probes of suspect edges find the other sign by more than 1 um, g is
@@ -45,9 +47,18 @@ int gr_ms_eval(gr_slice_fn fn, void *ud, size_t n, const double *x, const double
 int gr_ms_contour(const gr_ms_grid *g, gr_slice_fn fn, gr_slice_grad_fn gfn, void *ud, int refine,
                   double tol, gr_rings *out, gr_err *e);
 /* Chord accuracy pass over the rings of r (rewritten); w: the window whose
- * border segments are exact. */
+ * border segments are exact; with w->tips, tips of slivers are then followed
+ * to their end (gr_ms_follow_tips) and the new chords checked. */
 int gr_ms_chord_refine(gr_rings *r, gr_slice_fn fn, gr_slice_grad_fn gfn, void *ud, double tol,
                        double chord_tol, const gr_ms_win *w, gr_err *e);
+/* Tips of slivers narrower than the chords, grown along the crest of the
+ * field to where it closes them (tips.c): run after the chord pass; *okp
+ * (the chord pass's checked-chord marks, one per point) is replaced, new
+ * chords unchecked; *grown counts the tips that grew. */
+int gr_ms_follow_tips(gr_rings *r, unsigned char **okp, gr_slice_fn fn, void *ud, double tol, const gr_ms_win *w,
+                      size_t *grown, gr_err *e);
+/* Whether segments a-b and c-d cross at a point inside both. */
+int gr_ms_seg_cross(const double *a, const double *b, const double *c, const double *d);
 /* Append the ring xy (n points; consecutive duplicates removed) to out if it
  * keeps >= 3 points and nonzero area. */
 int gr_ms_emit_ring(gr_rings *out, double *xy, size_t n);
