@@ -45,8 +45,9 @@ static double tip_x(const gr_rings *r) {
   return best;
 }
 
-static void check_tip(int jump) {
-  crease c = {jump};
+/* The test window's slice options and its grid sampled by fn: the node
+ * values and the ring set sliced from them (the caller frees both). */
+static gr_rings *slice_window(gr_slice_fn fn, void *ud, gr_err *e, int *rc) {
   gr_slice_opts o = gr_slice_defaults();
   o.lo[0] = 0;
   o.lo[1] = -0.15;
@@ -57,18 +58,28 @@ static void check_tip(int jump) {
   int nx, ny;
   double hx, hy;
   gr_slice_grid_size(&o, &nx, &ny, &hx, &hy);
-  double *v = malloc((size_t)nx * ny * sizeof *v), *xs = malloc((size_t)nx * ny * sizeof *xs);
-  double *ys = malloc((size_t)nx * ny * sizeof *ys);
+  size_t nn = (size_t)nx * ny;
+  double *v = malloc(nn * sizeof *v), *xs = malloc(nn * sizeof *xs), *ys = malloc(nn * sizeof *ys);
   for (int j = 0; j < ny; j++)
     for (int i = 0; i < nx; i++) {
       xs[i + (size_t)nx * j] = o.lo[0] + i * hx;
       ys[i + (size_t)nx * j] = o.lo[1] + j * hy;
     }
-  gr_err e;
-  gr_err_clear(&e);
-  crease_fn(&c, (size_t)nx * ny, xs, ys, v, &e);
+  gr_err_clear(e);
+  fn(ud, nn, xs, ys, v, e);
   gr_rings *r = gr_rings_new();
-  int rc = gr_slice_grid(v, &o, crease_fn, NULL, &c, r, &e);
+  *rc = gr_slice_grid(v, &o, fn, NULL, ud, r, e);
+  free(v);
+  free(xs);
+  free(ys);
+  return r;
+}
+
+static void check_tip(int jump) {
+  crease c = {jump};
+  gr_err e;
+  int rc;
+  gr_rings *r = slice_window(crease_fn, &c, &e, &rc);
   CHECK(rc == GR_OK, "%s", e.msg);
   double t = tip_x(r);
   printf("    jump %d: tip %.3f um from the end\n", jump, (X0 - t) * 1e3);
@@ -79,14 +90,13 @@ static void check_tip(int jump) {
   double worst = 0;
   for (size_t k = 0; k < r->npts; k++) {
     double f, px = r->xy[2 * k], py = r->xy[2 * k + 1];
-    if (px <= o.lo[0] || px >= o.hi[0] || py <= o.lo[1] || py >= o.hi[1]) continue;
+    if (px <= 0 || px >= 0.3 || py <= -0.15 || py >= 0.15) continue; /* the window's edge */
     crease_fn(&c, 1, &px, &py, &f, &e);
     double s = X0 - px, dy = py - YA - s * s / (2 * RC);
     if (!(jump && fabs(dy) < 1e-5)) worst = fmax(worst, fabs(f));
   }
   CHECK(worst < 1e-5, "jump %d: a ring point off the zero set by %.3g um", jump, worst * 1e3);
   gr_rings_free(r);
-  free(v); free(xs); free(ys);
 }
 
 /* A corner where a jump meets the zero set, inside a long chord whose
@@ -105,35 +115,15 @@ static int jump_fn(void *ud, size_t n, const double *x, const double *y, double 
 }
 
 TEST(corner_of_a_jump_inside_a_chord) {
-  gr_slice_opts o = gr_slice_defaults();
-  o.lo[0] = 0;
-  o.lo[1] = -0.15;
-  o.hi[0] = 0.3;
-  o.hi[1] = 0.15;
-  o.cell = 0.025;
-  o.chord_tol = 2e-4;
-  int nx, ny;
-  double hx, hy;
-  gr_slice_grid_size(&o, &nx, &ny, &hx, &hy);
-  size_t nn = (size_t)nx * ny;
-  double *v = malloc(nn * sizeof *v), *xs = malloc(nn * sizeof *xs), *ys = malloc(nn * sizeof *ys);
-  for (int j = 0; j < ny; j++)
-    for (int i = 0; i < nx; i++) {
-      xs[i + (size_t)nx * j] = o.lo[0] + i * hx;
-      ys[i + (size_t)nx * j] = o.lo[1] + j * hy;
-    }
   gr_err e;
-  gr_err_clear(&e);
-  jump_fn(NULL, nn, xs, ys, v, &e);
-  gr_rings *r = gr_rings_new();
-  int rc = gr_slice_grid(v, &o, jump_fn, NULL, NULL, r, &e);
+  int rc;
+  gr_rings *r = slice_window(jump_fn, NULL, &e, &rc);
   CHECK(rc == GR_OK, "%s", e.msg);
   double best = INFINITY;
   for (size_t k = 0; k < r->npts; k++) best = fmin(best, hypot(r->xy[2 * k] - XJ, r->xy[2 * k + 1] - Y0));
   printf("    nearest ring point %.3f um from the corner\n", best * 1e3);
   CHECK(best < 3e-4, "no ring point within 0.3 um of the corner (nearest %.3f um)", best * 1e3);
   gr_rings_free(r);
-  free(v); free(xs); free(ys);
 }
 
 TEST(tip_of_a_kinked_crease) { check_tip(0); }
