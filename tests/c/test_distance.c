@@ -693,11 +693,15 @@ static double worst_vs_samples(const double *S, size_t ns, size_t n, const doubl
   return worst;
 }
 
-/* g's values at n (<= 16) points against the sampled zero set S (as
- * worst_vs_samples), within 0.1 um; S is freed. */
-static void check_vs_samples(const char *what, const gr_field *g, double *S, size_t ns, size_t n, const double *x,
-                             const double *y, const double *z, double t0, double tz) {
+/* g's values at n (<= 16) points against the zero set of phi sampled within
+ * `reach` of c every 5 um (iwp_samples, more than 1000 samples; as
+ * worst_vs_samples), within 0.1 um. */
+static void check_vs_samples(const char *what, const gr_field *g, const gr_field *phi, const double c[3], double reach,
+                             size_t n, const double *x, const double *y, const double *z, double t0, double tz) {
   double v[16], worst = INFINITY, at = 0;
+  size_t ns = 0;
+  double *S = g && phi ? iwp_samples(phi, c, reach, 0.005, &ns) : NULL;
+  CHECK(ns > 1000, "%s: %zu surface samples", what, ns);
   gr_err e;
   int ok = S && g && n <= 16 && !gr_field_eval(g, n, x, y, z, v, &e);
   if (ok) worst = worst_vs_samples(S, ns, n, x, y, z, v, t0, tz, &at);
@@ -719,11 +723,8 @@ TEST(direct_eval_on_surface) {
   CHECK(g != NULL, "%s", e.msg);
   enum { N = 11 };
   double c[3] = {2.519, 4, 1.1}, x[N], y[N], z[N];
-  size_t ns = 0;
-  double *S = g ? iwp_samples(phi, c, 0.33, 0.005, &ns) : NULL;
-  CHECK(ns > 1000, "%zu surface samples", ns);
   for (int i = 0; i < N; i++) x[i] = c[0], y[i] = c[1] - 0.005 + 0.01 * i / (N - 1), z[i] = c[2];
-  check_vs_samples("iwp T = 0.3 across y = 4 at x = 2.519, z = 1.1", g, S, ns, N, x, y, z, 0.3, 0);
+  check_vs_samples("iwp T = 0.3 across y = 4 at x = 2.519, z = 1.1", g, phi, c, 0.33, N, x, y, z, 0.3, 0);
   gr_field_free(g);
   gr_field_free(phi);
 }
@@ -754,11 +755,8 @@ TEST(direct_eval_overshoot) {
   CHECK(g != NULL, "%s", e.msg);
   enum { N = 12 };
   double c[3] = {1, 0.47, 4.36}, x[N], y[N], z[N];
-  size_t ns = 0;
-  double *S = g ? iwp_samples(phi, c, 0.2, 0.005, &ns) : NULL;
-  CHECK(ns > 1000, "%zu surface samples", ns);
   for (int i = 0; i < N; i++) x[i] = i < N / 2 ? 1 : 0.999, y[i] = 0.378 + 0.012 * (i % (N / 2)) / (N / 2 - 1), z[i] = 4.14;
-  check_vs_samples("iwp column T = 0.2 + 0.015 z near x = 1, z = 4.14", g, S, ns, N, x, y, z, 0.2, 0.015);
+  check_vs_samples("iwp column T = 0.2 + 0.015 z near x = 1, z = 4.14", g, phi, c, 0.2, N, x, y, z, 0.2, 0.015);
   gr_field_free(g);
   gr_field_free(phi);
 }

@@ -15,20 +15,9 @@ local t = require "gradus.testing"
 local lattice = require "gradus.lattice"
 local tmp = t.tmpdir()
 
--- the box X0..X1 x Y0..Y1 x 0..2 as 12 outward triangles, into file `path`
+-- the box X0..X1 x Y0..Y1 x 0..2 as an STL file (gradus.mesh.box: 12 outward triangles)
 local function box_stl(path, X0, X1, Y0, Y1)
-  local V = {}
-  for k = 0, 7 do V[k] = { k & 1 == 1 and X1 or X0, k >> 1 & 1 == 1 and Y1 or Y0, (k >> 2 & 1) * 2 } end
-  local F = { { 0, 2, 3 }, { 0, 3, 1 }, { 4, 5, 7 }, { 4, 7, 6 }, { 0, 1, 5 }, { 0, 5, 4 },
-    { 2, 6, 7 }, { 2, 7, 3 }, { 0, 4, 6 }, { 0, 6, 2 }, { 1, 3, 7 }, { 1, 7, 5 } }
-  local L = { "solid box" }
-  for _, f in ipairs(F) do
-    L[#L + 1] = "facet normal 0 0 0\nouter loop"
-    for _, k in ipairs(f) do L[#L + 1] = ("vertex %g %g %g"):format(V[k][1], V[k][2], V[k][3]) end
-    L[#L + 1] = "endloop\nendfacet"
-  end
-  L[#L + 1] = "endsolid box\n"
-  gradus.write_file(path, table.concat(L, "\n"))
+  gradus.mesh.box({ X0, Y0, 0 }, { X1, Y1, 2 }):write(path)
 end
 
 local b, G = 0.05, 5 -- beam offset (mm); the layer checked (z = 0.9 mm)
