@@ -267,31 +267,89 @@ static int face_crossings(const gr_rings *r, int vert, const double pos[NQ], dou
   return 0;
 }
 
-/* 1 if the section a (the voxel's, continued past its side with its own
- * grading) and b (the side neighbour's own, in its own coordinates) cross
- * the shared face, or the lines s = h/3, 2h/3 and h into the neighbour, at
- * different places (beyond FACE_TOL); 0 if not, -1 out of memory. side: 0
- * x = 0, 1 x = Lx, 2 y = 0, 3 y = Ly (cell: Lx, Ly); h: the hatch offset
- * (the farthest the voxel's contours and hatch region look across the face). */
-static int face_differs(const gr_rings *a, const gr_rings *b, int side, const double cell[2], double h) {
-  int vert = side < 2, r = 0;
-  double Lc = vert ? cell[0] : cell[1], L = vert ? cell[1] : cell[0]; /* across, along */
-  double pa[NQ], pb[NQ], *ca[NQ] = {NULL}, *cb[NQ] = {NULL};
-  size_t capa[NQ] = {0}, capb[NQ] = {0};
-  long na[NQ], nb[NQ];
+/* A template layer's crossings of the face-check lines, for each side
+ * (0 x = 0, 1 x = Lx, 2 y = 0, 3 y = Ly) and role: role 0, the section
+ * continued past the side, lines s = 0, h/3, 2h/3, h beyond it; role 1, the
+ * section inside its voxel, the same distances in from the side (h: the hatch
+ * offset, the farthest the contours and hatch region look across a face).
+ * Counts n, starts at, the crossings sorted along each line in c. One block. */
+typedef struct gr_fxing {
+  long n[2][4][NQ];
+  size_t at[2][4][NQ];
+  double c[];
+} gr_fxing;
+
+/* The lines of side `side`, role `role`, and the cell's lengths across and along them. */
+static void fx_lines(int side, int role, const double cell[2], double h, double pos[NQ], double *L) {
+  int vert = side < 2;
+  double Lc = vert ? cell[0] : cell[1];
+  *L = vert ? cell[1] : cell[0];
   for (int q = 0; q < NQ; q++) {
     double s = q * h / 3;
-    pa[q] = (side & 1) ? Lc + s : -s;
-    pb[q] = (side & 1) ? s : Lc - s;
+    pos[q] = role == 0 ? ((side & 1) ? Lc + s : -s) : ((side & 1) ? s : Lc - s);
   }
-  if (face_crossings(a, vert, pa, L, ca, capa, na) || face_crossings(b, vert, pb, L, cb, capb, nb)) r = -1;
-  for (int q = 0; q < NQ && r == 0; q++) {
-    r = na[q] != nb[q];
-    for (long k = 0; r == 0 && k < na[q]; k++)
-      if (fabs(ca[q][k] - cb[q][k]) > FACE_TOL) r = 1;
+}
+
+static gr_fxing *fx_make(const gr_rings *r, const double cell[2], double h) {
+  double *c[2][4][NQ] = {{{NULL}}};
+  size_t cap[2][4][NQ] = {{{0}}}, tot = 0;
+  long n[2][4][NQ];
+  int bad = 0;
+  for (int role = 0; role < 2 && !bad; role++)
+    for (int side = 0; side < 4 && !bad; side++) {
+      double pos[NQ], L;
+      fx_lines(side, role, cell, h, pos, &L);
+      bad = face_crossings(r, side < 2, pos, L, c[role][side], cap[role][side], n[role][side]);
+      for (int q = 0; q < NQ && !bad; q++) tot += (size_t)n[role][side][q];
+    }
+  gr_fxing *f = bad ? NULL : malloc(sizeof *f + tot * sizeof *f->c);
+  if (f) {
+    size_t at = 0;
+    for (int role = 0; role < 2; role++)
+      for (int side = 0; side < 4; side++)
+        for (int q = 0; q < NQ; q++) {
+          f->n[role][side][q] = n[role][side][q];
+          f->at[role][side][q] = at;
+          if (n[role][side][q]) memcpy(f->c + at, c[role][side][q], (size_t)n[role][side][q] * sizeof *f->c);
+          at += (size_t)n[role][side][q];
+        }
   }
-  for (int q = 0; q < NQ; q++) free(ca[q]), free(cb[q]);
-  return r;
+  for (int role = 0; role < 2; role++)
+    for (int side = 0; side < 4; side++)
+      for (int q = 0; q < NQ; q++) free(c[role][side][q]);
+  return f;
+}
+
+/* tl's crossings, made on first use. Template layers are shared by the
+ * assembly threads: the first to finish installs its block, a loser frees
+ * its own. NULL when out of memory. */
+static const gr_fxing *fx_of(const gr_tlayer *tl, const double cell[2], double h) {
+  _Atomic(gr_fxing *) *slot = (_Atomic(gr_fxing *) *)&tl->fx; /* a cache in a shared, read-only layer */
+  gr_fxing *f = atomic_load_explicit(slot, memory_order_acquire);
+  if (f) return f;
+  gr_fxing *mine = fx_make(tl->section, cell, h), *none = NULL;
+  if (!mine) return NULL;
+  if (atomic_compare_exchange_strong_explicit(slot, &none, mine, memory_order_acq_rel, memory_order_acquire))
+    return mine;
+  free(mine);
+  return none;
+}
+
+/* 1 if layer a's section continued past side `side` and its side
+ * neighbour b's own section cross the shared face, or the lines h/3, 2h/3
+ * and h into the neighbour, at different places (beyond FACE_TOL); 0 if
+ * not, -1 out of memory. */
+static int face_differs(const gr_tlayer *a, const gr_tlayer *b, int side, const double cell[2], double h) {
+  const gr_fxing *fa = fx_of(a, cell, h), *fb = fx_of(b, cell, h);
+  if (!fa || !fb) return -1;
+  for (int q = 0; q < NQ; q++) {
+    long na = fa->n[0][side][q];
+    if (na != fb->n[1][side][q]) return 1;
+    const double *ca = fa->c + fa->at[0][side][q], *cb = fb->c + fb->at[1][side][q];
+    for (long k = 0; k < na; k++)
+      if (fabs(ca[k] - cb[k]) > FACE_TOL) return 1;
+  }
+  return 0;
 }
 
 /* 1 when voxels v and n cannot step at their shared face: the same spec,
@@ -326,8 +384,8 @@ int gr_fstep_voxel(const gr_job *j, int v, int jl, gr_tlayer *out, int *done, gr
       if (tl && (di == 0) != (dj == 0) && !differ && !continuous_face(j, v, v + di + dj * nx)) {
         int side = di < 0 ? 0 : di > 0 ? 1 : dj < 0 ? 2 : 3;
         /* both ways: the two voxels must agree on whether the face steps */
-        int r = face_differs(own->section, tl->section, side, j->o.cell, h);
-        if (r == 0) r = face_differs(tl->section, own->section, side ^ 1, j->o.cell, h);
+        int r = face_differs(own, tl, side, j->o.cell, h);
+        if (r == 0) r = face_differs(tl, own, side ^ 1, j->o.cell, h);
         if (r < 0) return gr_fail(e, GR_EMEM, "out of memory");
         differ |= r;
       }
@@ -352,5 +410,6 @@ void gr_fstep_free(gr_tlayer *tl) {
   gr_rings_free(tl->region);
   gr_layer_free(tl->paths);
   gr_layer_free(tl->faces);
+  free(atomic_load(&tl->fx));
   memset(tl, 0, sizeof *tl);
 }

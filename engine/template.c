@@ -16,6 +16,7 @@ void gr_tmpl_free(gr_tmpl *t) {
     gr_rings_free(t->l[i].region);
     gr_layer_free(t->l[i].paths);
     gr_layer_free(t->l[i].faces);
+    free(atomic_load(&t->l[i].fx));
   }
   free(t->l);
   free(t);

@@ -23,6 +23,9 @@
 #include "grid.h"
 #include "kb.h"
 #include "place.h"
+#include <stdatomic.h>
+
+struct gr_fxing; /* facestep.c: where the section crosses the face-check lines */
 
 typedef struct gr_tlayer {
   double area;        /* section area inside the voxel square, mm^2 */
@@ -33,6 +36,10 @@ typedef struct gr_tlayer {
   gr_layer *faces;    /* contour segments along the voxel's sides at the contour
                          offsets, for voxels on the part's boundary (block.laser
                          = side: 0 x=0, 1 x=L, 2 y=0, 3 y=L) */
+  _Atomic(struct gr_fxing *) fx; /* made by the first face-step check that needs it
+                                    (facestep.c; one malloc'd block, freed with the layer):
+                                    the section's crossings of the lines near each face,
+                                    shared by every voxel of the template */
 } gr_tlayer;
 
 typedef struct gr_tmpl {
