@@ -32,6 +32,7 @@ void gr_asm_scratch_free(gr_asm_scratch *s) {
   free(s->vcont1);
   free(s->pts);
   free(s->link);
+  gr_fstep_cache_free(s->fs);
 }
 
 int gr_asm_scratch_init(gr_asm_scratch *s, int nrow) {
@@ -46,7 +47,8 @@ int gr_asm_scratch_init(gr_asm_scratch *s, int nrow) {
   s->vseg1 = calloc(nrow, sizeof(size_t));
   s->vcont0 = calloc(nrow, sizeof(size_t));
   s->vcont1 = calloc(nrow, sizeof(size_t));
-  if (!s->rg || !s->hl || !s->cont || !s->fl || !s->vtime || !s->vlas || !s->vseg0 || !s->vseg1 ||
+  s->fs = gr_fstep_cache_new();
+  if (!s->fs || !s->rg || !s->hl || !s->cont || !s->fl || !s->vtime || !s->vlas || !s->vseg0 || !s->vseg1 ||
       !s->vcont0 || !s->vcont1)
     return GR_EMEM;
   return GR_OK;
@@ -353,6 +355,7 @@ static int gather_voxels(gr_job *j, int g, gr_asm_scratch *s, gr_layer *out, gr_
   double *lc = s->vtime; /* reuse: contour length per slot, hatch length below */
   double *lh = malloc((size_t)(nslot > 0 ? nslot : 1) * sizeof *lh);
   if (!lh) return gr_fail(e, GR_EMEM, "out of memory");
+  gr_fstep_cache_clear(s->fs);
   int rc = GR_OK;
   for (int q = 0; q < nslot && rc == GR_OK; q++) {
     int v = vox[q];
@@ -364,25 +367,21 @@ static int gather_voxels(gr_job *j, int g, gr_asm_scratch *s, gr_layer *out, gr_
       rc = gr_fail(e, GR_EARG, "internal: no template layer %d for voxel %d", jl, v);
       break;
     }
-    const gr_tlayer *tl = &t->l[jl - t->j0];
-    gr_tlayer st; /* the layer on the true section where a neighbour is graded otherwise */
-    memset(&st, 0, sizeof st);
-    int stepped = 0;
-    if ((rc = gr_fstep_voxel(j, v, jl, &st, &stepped, e))) { gr_fstep_free(&st); break; }
-    if (stepped) tl = &st;
+    const gr_tlayer *tl = &t->l[jl - t->j0], *st; /* st: on the true section where a neighbour is graded otherwise */
+    if ((rc = gr_fstep_voxel(j, v, jl, s->fs, &st, e))) break;
+    if (st) tl = st;
     double o[3];
     gr_grid_origin(&j->grid, v, o);
     out->area += tl->area;
     size_t nb0 = s->cont->nb;
     int mask = voxel_sides(j, v);
     if ((mask && boundary_contours(j, s, tl, mask)) || gr_layer_append(s->cont, mask ? s->fl : tl->paths, o[0], o[1])) {
-      gr_fstep_free(&st);
       rc = gr_fail(e, GR_EMEM, "out of memory");
       break;
     }
     gr_skinring *sr = gr_skinring_new(j, g, v, tl, e); /* more contours along the skin (NULL: none) */
-    if (!sr && e->code) { gr_fstep_free(&st); rc = e->code; break; }
-    if (sr && (rc = gr_skinring_contours(sr, q, s->cont, e))) { gr_skinring_free(sr); gr_fstep_free(&st); break; }
+    if (!sr && e->code) { rc = e->code; break; }
+    if (sr && (rc = gr_skinring_contours(sr, q, s->cont, e))) { gr_skinring_free(sr); break; }
     for (size_t b = nb0; b < s->cont->nb; b++) {
       s->cont->b[b].laser = q; /* slot, mapped to the laser later */
       lc[q] += gr_block_length(s->cont, &s->cont->b[b]);
@@ -394,7 +393,6 @@ static int gather_voxels(gr_job *j, int g, gr_asm_scratch *s, gr_layer *out, gr_
     rc = hatch_voxel(j, s, tl, o, av, q, mask, e);
     if (rc == GR_OK) rc = gr_regions_split(j, g, v, sr, &s->segs, &s->nseg, &s->capseg, s->vseg0[q], e);
     gr_skinring_free(sr);
-    gr_fstep_free(&st);
     s->vcont1[q] = s->cont->nb;
     s->vseg1[q] = s->nseg;
     for (size_t r = s->vseg0[q]; r < s->nseg; r++) lh[q] += s->segs[r].s1 - s->segs[r].s0;

@@ -37,6 +37,7 @@ typedef struct gr_asm_scratch {
   gr_layer *fl;          /* contours of a boundary voxel, voxel-local */
   double *cbuf;
   size_t capcbuf;
+  struct gr_fstep_cache *fs; /* stepped layers of the layer being assembled */
 } gr_asm_scratch;
 
 /* nrow: voxels per row (nx*ny). Returns GR_OK or GR_EMEM (free it either way). */

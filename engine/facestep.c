@@ -17,6 +17,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <stdint.h>
 #include "clip.h"
 #include "hatch.h"
 
@@ -364,45 +365,146 @@ static int continuous_face(const gr_job *j, int v, int n) {
   return !gr_expr_uses(t, 3) && !gr_expr_uses(t, 4) && !(in && (gr_expr_uses(in, 3) || gr_expr_uses(in, 4)));
 }
 
-int gr_fstep_voxel(const gr_job *j, int v, int jl, gr_tlayer *out, int *done, gr_err *e) {
-  *done = 0;
-  int i, jj, k, nx = j->o.n[0], ny = j->o.n[1];
-  gr_grid_ijk(&j->grid, v, &i, &jj, &k);
-  const gr_tlayer *own = voxel_layer(j, v, jl);
-  if (!own) return GR_OK;
-  const gr_rings *nb[9];
-  int differ = 0, nc = j->o.contours;
-  double h = j->o.beam_offset + (nc > 1 ? nc - 1 : 0) * j->o.hatch + gr_hatch_defaults().gap;
+/* A voxel's neighbourhood on one layer: the nine template layers around it
+ * (NULL: no neighbour) and which of its four side faces are continuous
+ * (continuous_face). The stepped layer is a function of it alone. */
+typedef struct fs_key {
+  const gr_tlayer *nb[9];
+  int cont;
+} fs_key;
+
+typedef struct fs_entry {
+  fs_key k;
+  gr_tlayer *tl; /* the layer on the true section; NULL: the template's stands */
+  int used;
+} fs_entry;
+
+struct gr_fstep_cache {
+  fs_entry *e;
+  size_t n, cap; /* entries held, slots (a power of two, at most half full) */
+};
+
+gr_fstep_cache *gr_fstep_cache_new(void) { return calloc(1, sizeof(gr_fstep_cache)); }
+
+void gr_fstep_cache_clear(gr_fstep_cache *c) {
+  if (!c) return;
+  for (size_t k = 0; k < c->cap; k++)
+    if (c->e[k].used && c->e[k].tl) { gr_fstep_free(c->e[k].tl); free(c->e[k].tl); }
+  if (c->e) memset(c->e, 0, c->cap * sizeof *c->e);
+  c->n = 0;
+}
+
+void gr_fstep_cache_free(gr_fstep_cache *c) {
+  if (!c) return;
+  gr_fstep_cache_clear(c);
+  free(c->e);
+  free(c);
+}
+
+static size_t key_hash(const fs_key *k) {
+  uint64_t h = 1469598103934665603ull ^ (uint64_t)k->cont;
+  for (int q = 0; q < 9; q++) h = (h ^ (uint64_t)(uintptr_t)k->nb[q]) * 1099511628211ull;
+  return (size_t)(h ^ (h >> 29));
+}
+
+/* The slot of key k: its entry, or the free slot where it goes. */
+static fs_entry *cache_slot(gr_fstep_cache *c, const fs_key *k) {
+  size_t m = c->cap - 1;
+  for (size_t i = key_hash(k) & m;; i = (i + 1) & m)
+    if (!c->e[i].used || (c->e[i].k.cont == k->cont && !memcmp(c->e[i].k.nb, k->nb, sizeof k->nb))) return &c->e[i];
+}
+
+/* Room for one more entry (doubling and rehashing at half full); -1 out of memory. */
+static int cache_room(gr_fstep_cache *c) {
+  if (2 * (c->n + 1) <= c->cap) return 0;
+  size_t cap = c->cap ? 2 * c->cap : 64;
+  gr_fstep_cache old = *c;
+  if (!(c->e = calloc(cap, sizeof *c->e))) { c->e = old.e; return -1; }
+  c->cap = cap;
+  for (size_t k = 0; k < old.cap; k++)
+    if (old.e[k].used) *cache_slot(c, &old.e[k].k) = old.e[k];
+  free(old.e);
+  return 0;
+}
+
+/* Voxel v's neighbourhood on row layer jl into k, its own layer into *own
+ * (NULL: no template layer). GR_EARG when a neighbour's template has lost
+ * its section. */
+static int neighbourhood(const gr_job *j, int v, int jl, fs_key *k, const gr_tlayer **own, gr_err *e) {
+  int i, jj, kk, nx = j->o.n[0], ny = j->o.n[1];
+  gr_grid_ijk(&j->grid, v, &i, &jj, &kk);
+  *own = voxel_layer(j, v, jl);
+  memset(k, 0, sizeof *k);
+  if (!*own) return GR_OK;
   for (int dj = -1; dj <= 1; dj++)
     for (int di = -1; di <= 1; di++) {
       const gr_tlayer *tl = NULL;
-      if (i + di >= 0 && i + di < nx && jj + dj >= 0 && jj + dj < ny)
-        tl = voxel_layer(j, v + di + dj * nx, jl);
+      if (i + di >= 0 && i + di < nx && jj + dj >= 0 && jj + dj < ny) tl = voxel_layer(j, v + di + dj * nx, jl);
       if (tl && !tl->section) /* templates keep their sections (build.c) */
         return gr_fail(e, GR_EARG, "internal: the template of voxel %d has no section on row layer %d", v + di + dj * nx, jl);
-      nb[3 * (dj + 1) + di + 1] = tl ? tl->section : NULL;
-      if (tl && (di == 0) != (dj == 0) && !differ && !continuous_face(j, v, v + di + dj * nx)) {
-        int side = di < 0 ? 0 : di > 0 ? 1 : dj < 0 ? 2 : 3;
-        /* both ways: the two voxels must agree on whether the face steps */
-        int r = face_differs(own, tl, side, j->o.cell, h);
-        if (r == 0) r = face_differs(tl, own, side ^ 1, j->o.cell, h);
-        if (r < 0) return gr_fail(e, GR_EMEM, "out of memory");
-        differ |= r;
-      }
+      k->nb[3 * (dj + 1) + di + 1] = tl;
+      int side = di < 0 ? 0 : di > 0 ? 1 : dj < 0 ? 2 : 3;
+      if (tl && (di == 0) != (dj == 0) && continuous_face(j, v, v + di + dj * nx)) k->cont |= 1 << side;
     }
+  return GR_OK;
+}
+
+/* The stepped layer of neighbourhood k (own: k.nb[4]) into *out (NULL: not
+ * needed, or degenerate: the template's layer stands). */
+static int stepped_layer(const gr_job *j, const fs_key *k, gr_tlayer **out, gr_err *e) {
+  const gr_tlayer *own = k->nb[4];
+  int differ = 0, nc = j->o.contours;
+  double h = j->o.beam_offset + (nc > 1 ? nc - 1 : 0) * j->o.hatch + gr_hatch_defaults().gap;
+  static const int side_of[4] = {2, 0, 1, 3}, at[4] = {1, 3, 5, 7}; /* nb index -> side */
+  for (int q = 0; q < 4 && !differ; q++) {
+    const gr_tlayer *tl = k->nb[at[q]];
+    int side = side_of[q];
+    if (!tl || (k->cont >> side & 1)) continue;
+    /* both ways: the two voxels must agree on whether the face steps */
+    int r = face_differs(own, tl, side, j->o.cell, h);
+    if (r == 0) r = face_differs(tl, own, side ^ 1, j->o.cell, h);
+    if (r < 0) return gr_fail(e, GR_EMEM, "out of memory");
+    differ = r;
+  }
+  *out = NULL;
   if (!differ) return GR_OK;
-  if (!out->section && !(out->section = gr_rings_new())) return gr_fail(e, GR_EMEM, "out of memory");
-  int rc = gr_fstep_section(j->o.cell, gr_tmpl_window(&j->o), nb, out->section, e);
+  gr_tlayer *st = calloc(1, sizeof *st);
+  if (!st || !(st->section = gr_rings_new())) { free(st); return gr_fail(e, GR_EMEM, "out of memory"); }
+  const gr_rings *nb[9];
+  for (int q = 0; q < 9; q++) nb[q] = k->nb[q] ? k->nb[q]->section : NULL;
+  int rc = gr_fstep_section(j->o.cell, gr_tmpl_window(&j->o), nb, st->section, e);
   if (rc == GR_EARG) { /* degenerate: keep the template's layer */
     gr_err_clear(e);
+    gr_fstep_free(st);
+    free(st);
     return GR_OK;
   }
-  if (rc) return rc;
-  out->area = own->area;
-  out->q[0] = out->q[1] = out->q[2] = NAN;
-  rc = gr_tmpl_paths(&j->o, out, 1, e);
-  *done = rc == GR_OK;
+  if (rc == GR_OK) {
+    st->area = own->area;
+    st->q[0] = st->q[1] = st->q[2] = NAN;
+    rc = gr_tmpl_paths(&j->o, st, 1, e);
+  }
+  if (rc == GR_OK) *out = st;
+  else { gr_fstep_free(st); free(st); }
   return rc;
+}
+
+int gr_fstep_voxel(const gr_job *j, int v, int jl, gr_fstep_cache *c, const gr_tlayer **out, gr_err *e) {
+  *out = NULL;
+  fs_key k;
+  const gr_tlayer *own;
+  int rc = neighbourhood(j, v, jl, &k, &own, e);
+  if (rc || !own) return rc;
+  if (cache_room(c)) return gr_fail(e, GR_EMEM, "out of memory");
+  fs_entry *en = cache_slot(c, &k);
+  if (!en->used) {
+    gr_tlayer *st;
+    if ((rc = stepped_layer(j, &k, &st, e))) return rc;
+    *en = (fs_entry){k, st, 1};
+    c->n++;
+  }
+  *out = en->tl;
+  return GR_OK;
 }
 
 void gr_fstep_free(gr_tlayer *tl) {

@@ -28,16 +28,24 @@
  * when the pieces do not close into rings (degenerate input: a section edge
  * lying along a face); out is then empty and the caller keeps the template. */
 int gr_fstep_section(const double L[2], double m, const gr_rings *const nb[9], gr_rings *out, gr_err *e);
+/* The stepped layers of one layer's assembly, shared by the voxels whose
+ * neighbourhoods are the same (the nine template layers around them and
+ * which of their faces are continuous): along a flat part face or a run of
+ * equal classes the same layer serves many voxels. Owned by one assembly
+ * thread; cleared between layers (the template layers it keys on change). */
+typedef struct gr_fstep_cache gr_fstep_cache;
+gr_fstep_cache *gr_fstep_cache_new(void); /* NULL when out of memory */
+void gr_fstep_cache_clear(gr_fstep_cache *c);
+void gr_fstep_cache_free(gr_fstep_cache *c);
 /* Voxel v of job j on its row's local layer jl: when its template's section,
  * continued past a side with the voxel's own grading, differs from the side
  * neighbour's own section within the hatch offset of their face (crossings of
  * the face and of three lines parallel to it more than 0.2 um apart: a step,
  * or a grading that changes across the face, such as a sine in u), its layer
- * is recomputed on the window's true section (gr_tmpl_paths) into out (a
- * zeroed gr_tlayer; free it with gr_fstep_free) and *done = 1; *done = 0 when
- * not needed or degenerate (keep the template's layer). GR_OK or GR_EMEM (e
- * filled). Thread-safe for distinct out. */
-int gr_fstep_voxel(const gr_job *j, int v, int jl, gr_tlayer *out, int *done, gr_err *e);
+ * recomputed on the window's true section (gr_tmpl_paths) into *out, held by
+ * the cache c until it is cleared; *out = NULL when not needed or degenerate
+ * (keep the template's layer). GR_OK, GR_EMEM or GR_EARG (e filled). */
+int gr_fstep_voxel(const gr_job *j, int v, int jl, gr_fstep_cache *c, const gr_tlayer **out, gr_err *e);
 void gr_fstep_free(gr_tlayer *tl); /* frees the members, zeroes tl */
 
 #endif
