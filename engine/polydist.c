@@ -35,11 +35,11 @@ static void pd_free(poly_dist *d) {
   free(d->ab); free(d->bstart); free(d->bedge); free(d->bb);
 }
 
-/* fmin and fmax as glibc's x86-64 versions compute them (minsd/maxsd: the
- * second argument when equal, the other one when one is NaN), inline: the
- * library calls cost more than the comparisons. */
-static inline double pd_min(double a, double b) { return b != b ? a : a < b ? a : b; }
-static inline double pd_max(double a, double b) { return b != b ? a : a > b ? a : b; }
+/* fmin and fmax inline, bit for bit as glibc returns them (the first
+ * argument when they compare equal, as 0 and -0 do; the other one when one
+ * is NaN): the library calls cost more than the comparisons. */
+static inline double pd_min(double a, double b) { return a != a ? b : b < a ? b : a; }
+static inline double pd_max(double a, double b) { return a != a ? b : b > a ? b : a; }
 
 /* Squared distance from (x, y) to edge p (ax ay bx by) and the nearest
  * point's parameter t along it. */
