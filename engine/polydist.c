@@ -18,14 +18,17 @@ typedef struct poly_dist {
   int *bb;              /* 4 per edge: the buckets of its box, i0 i1 j0 j1 */
   double b;             /* offset distance, mm: fn returns sd + b */
   const gr_ms_grid *grid; /* sampled sd + b (signs exact, |sd| a lower bound), or NULL */
+  struct pd_seen *seen; /* pd_fn's and pd_gfn's edge marks, or NULL */
 } poly_dist;
 
 /* Marks of the edges one search has measured. An edge is listed in every
- * bucket its bounding box meets, so a search over a few buckets meets a long
+ * bucket its bounding box meets, so a search over a few buckets meets an
  * edge several times; measuring it again cannot change the result (its d2
  * is not below the best any more), so a marked edge is skipped. The marks
- * belong to one batch of queries on one thread (pd_fn, pd_gfn allocate
- * them); shared objects (gr_polydist) search without. */
+ * are mutable: only one offset (gr_offset_rings_opt) owns them, for the
+ * queries of its own callbacks, which march.c and hidden.c make on the
+ * offset's thread one at a time; shared objects (gr_polydist) search
+ * without. */
 typedef struct pd_seen {
   unsigned *mark; /* per edge: the id of the last search that measured it */
   unsigned id;    /* the current search's id (0 is never one) */
@@ -194,8 +197,8 @@ static double pd_signed(const poly_dist *d, pd_seen *seen, double x, double y, d
   return in ? -sqrt(d2) : sqrt(d2);
 }
 
-/* Marks for one batch of queries (NULL when out of memory: the searches
- * then measure edges again, with the same results). */
+/* Marks for the queries of one offset (NULL when out of memory: the
+ * searches then measure edges again, with the same results). */
 static pd_seen *pd_seen_new(const poly_dist *d, pd_seen *s) {
   s->id = 0;
   s->mark = d->ne ? calloc(d->ne, sizeof *s->mark) : NULL;
@@ -207,9 +210,7 @@ static int pd_fn(void *ud, size_t n, const double *x, const double *y,
                  double *out, gr_err *e) {
   (void)e;
   const poly_dist *d = ud;
-  pd_seen sm, *seen = pd_seen_new(d, &sm);
-  for (size_t k = 0; k < n; k++) out[k] = pd_signed(d, seen, x[k], y[k], NULL) + d->b;
-  if (seen) free(seen->mark);
+  for (size_t k = 0; k < n; k++) out[k] = pd_signed(d, d->seen, x[k], y[k], NULL) + d->b;
   return GR_OK;
 }
 
@@ -221,16 +222,14 @@ static int pd_gfn(void *ud, size_t n, const double *x, const double *y, double *
                   gr_err *e) {
   (void)e;
   const poly_dist *d = ud;
-  pd_seen sm, *seen = pd_seen_new(d, &sm);
   for (size_t k = 0; k < n; k++) {
-    double q[2], sd = pd_signed(d, seen, x[k], y[k], q), dx = x[k] - q[0], dy = y[k] - q[1];
+    double q[2], sd = pd_signed(d, d->seen, x[k], y[k], q), dx = x[k] - q[0], dy = y[k] - q[1];
     double r = sqrt(dx * dx + dy * dy);
     out[k] = sd + d->b;
     double s = sd < 0 ? -1 / r : 1 / r;
     gx[k] = r > 0 ? s * dx : NAN;
     gy[k] = r > 0 ? s * dy : NAN;
   }
-  if (seen) free(seen->mark);
   return GR_OK;
 }
 
@@ -538,6 +537,8 @@ int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
   double rmax = b + 2 * fmax(g.hx, g.hy);
   rc = pd_build(&d, src, fmax(g.hx, g.hy), e);
   d.b = b;
+  pd_seen seen;
+  if (!rc) d.seen = pd_seen_new(&d, &seen);
   if (!rc) {
     v = malloc((size_t)g.nx * g.ny * sizeof *v);
     if (!v) rc = gr_fail(e, GR_EMEM, "out of memory: offset grid %d x %d", g.nx, g.ny);
@@ -560,6 +561,7 @@ int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
   if (!rc) rc = gr_rings_nest(out, e);
   free(fine);
   free(v);
+  if (d.seen) free(d.seen->mark);
   pd_free(&d);
   gr_rings_free(src);
   return rc;
