@@ -15,13 +15,34 @@ typedef struct poly_dist {
   double bs;            /* bucket size, mm */
   int bx, by;           /* buckets per axis */
   size_t *bstart, *bedge; /* CSR: edges of bucket k are bedge[bstart[k]..bstart[k+1]) */
+  int *bb;              /* 4 per edge: the buckets of its box, i0 i1 j0 j1 */
   double b;             /* offset distance, mm: fn returns sd + b */
   const gr_ms_grid *grid; /* sampled sd + b (signs exact, |sd| a lower bound), or NULL */
+  struct pd_seen *seen; /* pd_fn's and pd_gfn's edge marks, or NULL */
 } poly_dist;
 
+/* Marks of the edges one search has measured. An edge is listed in every
+ * bucket its bounding box meets, so a search over a few buckets meets an
+ * edge several times; measuring it again cannot change the result (its d2
+ * is not below the best any more), so a marked edge is skipped. The marks
+ * are mutable: only one offset (gr_offset_rings_opt) owns them, for the
+ * queries of its own callbacks, which march.c and hidden.c make on the
+ * offset's thread one at a time; shared objects (gr_polydist) search
+ * without. */
+typedef struct pd_seen {
+  unsigned *mark; /* per edge: the id of the last search that measured it */
+  unsigned id;    /* the current search's id (0 is never one) */
+} pd_seen;
+
 static void pd_free(poly_dist *d) {
-  free(d->ab); free(d->bstart); free(d->bedge);
+  free(d->ab); free(d->bstart); free(d->bedge); free(d->bb);
 }
+
+/* fmin and fmax inline, bit for bit as glibc returns them (the first
+ * argument when they compare equal, as 0 and -0 do; the other one when one
+ * is NaN): the library calls cost more than the comparisons. */
+static inline double pd_min(double a, double b) { return a != a ? b : b < a ? b : a; }
+static inline double pd_max(double a, double b) { return a != a ? b : b > a ? b : a; }
 
 /* Squared distance from (x, y) to edge p (ax ay bx by) and the nearest
  * point's parameter t along it. */
@@ -35,42 +56,84 @@ static inline double edge_d2(const double *p, double x, double y, double *tpar) 
   return qx * qx + qy * qy;
 }
 
+/* pd_search's modes */
+enum { PD_NEAREST, PD_ANY, PD_GROW };
+
+/* pd_search's last ring for radius rmax: the rings out to rmax and one
+ * more, and never more than cover all buckets. */
+static int pd_kmax(const poly_dist *d, double rmax, int cap) {
+  int kmax = (int)ceil(rmax / d->bs) + 1;
+  return kmax > cap ? cap : kmax;
+}
+
+/* Measure the edges listed in buckets ka..kb - 1 (consecutive buckets of one
+ * row: the CSR lists their edges one bucket after the other, as a walk over
+ * the buckets would meet them) against the best so far. Returns 1 when
+ * PD_ANY finds an edge within rmax (its d2 in *best). */
+static inline int pd_visit(const poly_dist *d, pd_seen *seen, unsigned id, size_t ka, size_t kb, double x,
+                           double y, double rmax, int mode, double *best, size_t *edge, double *tpar) {
+  for (size_t q = d->bstart[ka]; q < d->bstart[kb]; q++) {
+    size_t ed = d->bedge[q];
+    if (seen) {
+      if (seen->mark[ed] == id) continue;
+      seen->mark[ed] = id;
+    }
+    double t, d2 = edge_d2(d->ab + 4 * ed, x, y, &t);
+    if (d2 < *best) { *best = d2; *edge = ed; *tpar = t; }
+    if (mode == PD_ANY && sqrt(d2) <= rmax) { *best = d2; return 1; }
+  }
+  return 0;
+}
+
 /* Nearest edge to (x, y) among edges within rmax (searching rings of buckets
- * outward). Returns the squared distance (INFINITY if none within rmax) and
- * the edge and parameter. With `any`, returns at the first edge whose
- * distance is <= rmax (a yes/no query: not the nearest). */
-static double pd_nearest(const poly_dist *d, double x, double y, double rmax, int any,
-                         size_t *edge, double *tpar) {
+ * outward: ring k's rows top to bottom, each left to right). Returns the
+ * squared distance (INFINITY if none within rmax) and the edge and
+ * parameter; ties go to the edge met first. PD_ANY returns at the first edge
+ * whose distance is <= rmax (a yes/no query: not the nearest). PD_GROW
+ * repeats a search that finds nothing with rmax 4 times larger until it
+ * finds an edge: the searches visit the same rings in the same order and
+ * each ring leaves the same best, so this continues the failed search where
+ * it stopped instead of starting over, with the same result. seen (or NULL)
+ * skips edges met before (pd_seen). */
+static double pd_search(const poly_dist *d, pd_seen *seen, double x, double y, double rmax, int mode,
+                        size_t *edge, double *tpar) {
   double best = INFINITY;
   int ci = (int)floor((x - d->lo[0]) / d->bs), cj = (int)floor((y - d->lo[1]) / d->bs);
-  int kmax = (int)ceil(rmax / d->bs) + 1;
-  int lim = (d->bx > d->by ? d->bx : d->by) + 2;
-  if (kmax > lim + abs(ci) + abs(cj)) kmax = lim + abs(ci) + abs(cj);
+  int cap = (d->bx > d->by ? d->bx : d->by) + 2 + abs(ci) + abs(cj);
+  int kmax = pd_kmax(d, rmax, cap);
+  unsigned id = 0;
+  if (seen && (id = ++seen->id) == 0) { /* ids wrapped around: forget all marks */
+    memset(seen->mark, 0, d->ne * sizeof *seen->mark);
+    id = seen->id = 1;
+  }
   for (int k = 0; k <= kmax; k++) {
-    for (int j = cj - k; j <= cj + k; j++) {
-      if (j < 0 || j >= d->by) continue;
-      int step = (j == cj - k || j == cj + k) ? 1 : 2 * k;
-      for (int i = ci - k; i <= ci + k; i += step ? step : 1) {
-        if (i >= 0 && i < d->bx) {
-          size_t bk = (size_t)i + (size_t)d->bx * j;
-          for (size_t q = d->bstart[bk]; q < d->bstart[bk + 1]; q++) {
-            size_t ed = d->bedge[q];
-            double t, d2 = edge_d2(d->ab + 4 * ed, x, y, &t);
-            if (d2 < best) { best = d2; *edge = ed; *tpar = t; }
-            if (any && sqrt(d2) <= rmax) return d2;
-          }
-        }
-        if (step == 0) break;
+    int ia = ci - k < 0 ? 0 : ci - k, ib = ci + k >= d->bx ? d->bx - 1 : ci + k;
+    int ja = cj - k < 0 ? 0 : cj - k, jb = cj + k >= d->by ? d->by - 1 : cj + k;
+    for (int j = ja; j <= jb; j++) {
+      size_t row = (size_t)d->bx * j;
+      int hit = 0;
+      if (j == cj - k || j == cj + k) { /* the ring's first or last row: all of it */
+        if (ia <= ib) hit = pd_visit(d, seen, id, row + ia, row + ib + 1, x, y, rmax, mode, &best, edge, tpar);
+      } else { /* a row between: its two ends */
+        if (ci - k >= 0 && ci - k < d->bx)
+          hit = pd_visit(d, seen, id, row + ci - k, row + ci - k + 1, x, y, rmax, mode, &best, edge, tpar);
+        if (!hit && ci + k >= 0 && ci + k < d->bx)
+          hit = pd_visit(d, seen, id, row + ci + k, row + ci + k + 1, x, y, rmax, mode, &best, edge, tpar);
       }
+      if (hit) return best;
     }
     /* everything not yet searched is farther than k*bs from (x, y) when the
-     * point is inside bucket (ci, cj) */
+     * point is inside bucket (ci, cj); the search for rmax stops here when
+     * that covers the best or rmax, or at its last ring */
     double safe = k * d->bs;
-    if (best <= safe * safe) break;
-    if (safe > rmax) break;
+    while (best <= safe * safe || safe > rmax || k >= kmax) {
+      if (!(best > rmax * rmax)) return best;
+      if (mode != PD_GROW || !(rmax < INFINITY)) return INFINITY;
+      rmax *= 4;
+      kmax = pd_kmax(d, rmax, cap);
+    }
   }
-  if (best > rmax * rmax) return INFINITY;
-  return best;
+  return INFINITY; /* not reached: the last ring stops the search */
 }
 
 /* Inside by the even-odd rule (as the offset grid's signs are): crossings
@@ -93,10 +156,9 @@ static int pd_inside(const poly_dist *d, double x, double y) {
       const double *a = d->ab + 4 * d->bedge[q];
       double xc;
       if (!gr_edge_at_y(a[0], a[1], a[2], a[3], y, &xc)) continue;
-      int i0 = (int)floor((fmin(a[0], a[2]) - d->lo[0]) / d->bs), i1 = (int)floor((fmax(a[0], a[2]) - d->lo[0]) / d->bs);
+      const int *bb = d->bb + 4 * d->bedge[q]; /* the box's columns (within the grid) */
       int ic = (int)floor((xc - d->lo[0]) / d->bs);
-      ic = ic < i0 ? i0 : ic > i1 ? i1 : ic;
-      if (ic > d->bx - 1) ic = d->bx - 1;
+      ic = ic < bb[0] ? bb[0] : ic > bb[1] ? bb[1] : ic;
       if (ic == i && (right ? xc > x : xc <= x)) odd ^= 1;
     }
   }
@@ -122,12 +184,12 @@ static int pd_grid_side(const poly_dist *d, double x, double y) {
 }
 
 /* Exact signed distance (negative inside) of (x, y) to the edges; q (may be
- * NULL) receives the nearest boundary point. +INFINITY without edges. */
-static double pd_signed(const poly_dist *d, double x, double y, double q[2]) {
+ * NULL) receives the nearest boundary point. +INFINITY without edges. The
+ * search starts at 2 bucket sizes and grows 4 times at a time. */
+static double pd_signed(const poly_dist *d, pd_seen *seen, double x, double y, double q[2]) {
   if (d->ne == 0) return INFINITY;
   size_t ed = 0;
-  double t = 0, d2 = INFINITY;
-  for (double r = 2 * d->bs; !isfinite(d2); r *= 4) d2 = pd_nearest(d, x, y, r, 0, &ed, &t);
+  double t = 0, d2 = pd_search(d, seen, x, y, 2 * d->bs, PD_GROW, &ed, &t);
   const double *a = d->ab + 4 * ed;
   if (q) { q[0] = a[0] + t * (a[2] - a[0]); q[1] = a[1] + t * (a[3] - a[1]); }
   int in = pd_grid_side(d, x, y);
@@ -135,12 +197,20 @@ static double pd_signed(const poly_dist *d, double x, double y, double q[2]) {
   return in ? -sqrt(d2) : sqrt(d2);
 }
 
+/* Marks for the queries of one offset (NULL when out of memory: the
+ * searches then measure edges again, with the same results). */
+static pd_seen *pd_seen_new(const poly_dist *d, pd_seen *s) {
+  s->id = 0;
+  s->mark = d->ne ? calloc(d->ne, sizeof *s->mark) : NULL;
+  return s->mark ? s : NULL;
+}
+
 /* Signed distance (negative inside) + b, exact. */
 static int pd_fn(void *ud, size_t n, const double *x, const double *y,
                  double *out, gr_err *e) {
   (void)e;
   const poly_dist *d = ud;
-  for (size_t k = 0; k < n; k++) out[k] = pd_signed(d, x[k], y[k], NULL) + d->b;
+  for (size_t k = 0; k < n; k++) out[k] = pd_signed(d, d->seen, x[k], y[k], NULL) + d->b;
   return GR_OK;
 }
 
@@ -153,7 +223,8 @@ static int pd_gfn(void *ud, size_t n, const double *x, const double *y, double *
   (void)e;
   const poly_dist *d = ud;
   for (size_t k = 0; k < n; k++) {
-    double q[2], sd = pd_signed(d, x[k], y[k], q), dx = x[k] - q[0], dy = y[k] - q[1], r = sqrt(dx * dx + dy * dy);
+    double q[2], sd = pd_signed(d, d->seen, x[k], y[k], q), dx = x[k] - q[0], dy = y[k] - q[1];
+    double r = sqrt(dx * dx + dy * dy);
     out[k] = sd + d->b;
     double s = sd < 0 ? -1 / r : 1 / r;
     gx[k] = r > 0 ? s * dx : NAN;
@@ -181,11 +252,11 @@ static int pd_build(poly_dist *d, const gr_rings *r, double bs, gr_err *e) {
     size_t s0 = 0;
     while (s0 < n && same_pt(p, s0, (s0 + n - 1) % n)) s0++;
     for (size_t c = 0; c < n && s0 < n; c++) {
-      size_t k = (s0 + c) % n, k1 = (k + 1) % n;
+      size_t k = s0 + c < n ? s0 + c : s0 + c - n, k1 = k + 1 < n ? k + 1 : 0;
       if (same_pt(p, k, k1)) continue;
       double *a = d->ab + 4 * d->ne++;
       a[0] = p[2 * k]; a[1] = p[2 * k + 1]; a[2] = p[2 * k1]; a[3] = p[2 * k1 + 1];
-      for (int q = 0; q < 2; q++) { lo[q] = fmin(lo[q], a[q]); hi[q] = fmax(hi[q], a[q]); }
+      for (int q = 0; q < 2; q++) { lo[q] = pd_min(lo[q], a[q]); hi[q] = pd_max(hi[q], a[q]); }
     }
   }
   if (d->ne == 0) lo[0] = lo[1] = hi[0] = hi[1] = 0; /* no edges: one bucket */
@@ -201,16 +272,23 @@ static int pd_build(poly_dist *d, const gr_rings *r, double bs, gr_err *e) {
   d->by = (int)floor((hi[1] - lo[1]) / bs) + 1;
   size_t nb = (size_t)d->bx * d->by;
   d->bstart = calloc(nb + 1, sizeof *d->bstart);
-  if (!d->bstart) return gr_fail(e, GR_EMEM, "out of memory: %zu buckets", nb);
+  d->bb = malloc(4 * d->ne * sizeof *d->bb + 1);
+  if (!d->bstart || !d->bb) return gr_fail(e, GR_EMEM, "out of memory: %zu buckets", nb);
+  for (size_t ed = 0; ed < d->ne; ed++) {
+    const double *a = d->ab + 4 * ed;
+    int *bb = d->bb + 4 * ed;
+    bb[0] = (int)floor((pd_min(a[0], a[2]) - lo[0]) / bs);
+    bb[1] = (int)floor((pd_max(a[0], a[2]) - lo[0]) / bs);
+    bb[2] = (int)floor((pd_min(a[1], a[3]) - lo[1]) / bs);
+    bb[3] = (int)floor((pd_max(a[1], a[3]) - lo[1]) / bs);
+    if (bb[1] >= d->bx) bb[1] = d->bx - 1;
+    if (bb[3] >= d->by) bb[3] = d->by - 1;
+  }
   for (int pass = 0; pass < 2; pass++) {
     for (size_t ed = 0; ed < d->ne; ed++) {
-      const double *a = d->ab + 4 * ed;
-      int i0 = (int)floor((fmin(a[0], a[2]) - lo[0]) / bs), i1 = (int)floor((fmax(a[0], a[2]) - lo[0]) / bs);
-      int j0 = (int)floor((fmin(a[1], a[3]) - lo[1]) / bs), j1 = (int)floor((fmax(a[1], a[3]) - lo[1]) / bs);
-      if (i1 >= d->bx) i1 = d->bx - 1;
-      if (j1 >= d->by) j1 = d->by - 1;
-      for (int j = j0; j <= j1; j++)
-        for (int i = i0; i <= i1; i++) {
+      const int *bb = d->bb + 4 * ed;
+      for (int j = bb[2]; j <= bb[3]; j++)
+        for (int i = bb[0]; i <= bb[1]; i++) {
           size_t bk = (size_t)i + (size_t)d->bx * j;
           if (pass == 0) d->bstart[bk + 1]++;
           else d->bedge[d->bstart[bk]++] = ed;
@@ -236,7 +314,7 @@ static int cmp_double(const void *a, const void *b) {
 /* The grid rows j (y = y0 + j hy) an edge with ends at heights ya, yb may
  * cross, [*j0, *j1] (a superset, clamped to the grid; empty when j0 > j1). */
 static void pd_edge_rows(const gr_ms_grid *g, double ya, double yb, int *j0, int *j1) {
-  double lo = (fmin(ya, yb) - g->y0) / g->hy, hi = (fmax(ya, yb) - g->y0) / g->hy;
+  double lo = (pd_min(ya, yb) - g->y0) / g->hy, hi = (pd_max(ya, yb) - g->y0) / g->hy;
   *j0 = !(lo > 0) ? 0 : lo > g->ny ? g->ny : (int)floor(lo);
   *j1 = !(hi < g->ny - 1) ? g->ny - 1 : hi < 0 ? -1 : (int)ceil(hi);
 }
@@ -272,56 +350,148 @@ static double *pd_row_crossings(const poly_dist *d, const gr_ms_grid *g, size_t 
   return xs;
 }
 
+/* Squared distances of the nodes of grid rows j0..j1 to one edge p (ax ay bx
+ * by), lowered into v where smaller. Only nodes within rmax of the edge can
+ * matter (pd_sample clamps larger distances to rmax), so each row visits only
+ * the nodes of the columns i0..i1 (the edge's box grown by rmax) that lie in
+ * the disk of radius rr + L/2 around the edge's middle and in the band of
+ * half-width rr around its line (unless the edge is nearly horizontal: the
+ * band's columns would not be bounded), both holding all points within rr
+ * of the edge. rr exceeds rmax by far more than the rounding of d2 and of
+ * the columns, so a node left out has d2 > rmax^2.
+ * The value is the expression of edge_d2 (bit for bit): a node before the
+ * edge's start (t <= 0) or past its end (t >= 1) needs no division, and its
+ * parts along y are the row's. xn[i] is node i's x. */
+static void pd_sample_edge(const double *p, const gr_ms_grid *g, const double *xn, int i0, int i1, int j0,
+                           int j1, double rr, double *v) {
+  double ax = p[0], ay = p[1], ex = p[2] - p[0], ey = p[3] - p[1], L2 = ex * ex + ey * ey;
+  double bx = ax + ex, by = ay + ey; /* p[0] + t * ex at t = 1, as edge_d2 has it */
+  double L = sqrt(L2), ihx = 1 / g->hx;
+  double cx = ax + 0.5 * ex, cy = ay + 0.5 * ey, R = rr + 0.5 * L, R2 = R * R;
+  /* the band along row j: columns u0 + j du .. u1 + j du (x - ax between
+   * ((y - ay) ex -+ rr L) / ey) */
+  int band = fabs(ey) > 1e-3 * L;
+  double du = 0, u0 = 0, u1 = 0;
+  if (band) {
+    double c = ax - g->x0 + (g->y0 - ay) * ex / ey, w = rr * L / fabs(ey);
+    du = g->hy * ex / ey * ihx;
+    u0 = (c - w) * ihx;
+    u1 = (c + w) * ihx;
+  }
+  /* the rows the disk spans: ceil and floor inside [j0, j1] as below */
+  double ra = (cy - R - g->y0) / g->hy, rb = (cy + R - g->y0) / g->hy;
+  if (ra > j0) j0 = ra > j1 ? j1 + 1 : (int)ra + ((int)ra < ra);
+  if (rb < j1) j1 = rb < j0 ? j0 - 1 : (int)rb;
+  for (int j = j0; j <= j1; j++) {
+    double y = g->y0 + j * g->hy, dy = y - cy, s = R2 - dy * dy;
+    if (!(s >= 0)) continue; /* the row misses the disk */
+    double hw = sqrt(s), lo = (cx - hw - g->x0) * ihx, hi = (cx + hw - g->x0) * ihx;
+    if (band) {
+      double bl = u0 + j * du, bh = u1 + j * du;
+      if (bl > lo) lo = bl;
+      if (bh < hi) hi = bh;
+    }
+    /* ceil(lo) and floor(hi) where they fall inside [i0, i1] (>= 0 there:
+     * the conversion truncates down) */
+    int ia = i0, ib = i1;
+    if (lo > ia) ia = lo > ib ? ib + 1 : (int)lo + ((int)lo < lo);
+    if (hi < ib) ib = hi < ia ? ia - 1 : (int)hi;
+    double ny = (y - ay) * ey, qy0 = ay - y, qy1 = by - y, c0 = qy0 * qy0, c1 = qy1 * qy1;
+    double *row = v + (size_t)g->nx * j;
+    for (int i = ia; i <= ib; i++) {
+      double x = xn[i], num = (x - ax) * ex + ny, d2;
+      if (num <= 0) { /* t = 0 (num / L2 <= 0): the start */
+        double qx = ax - x;
+        d2 = qx * qx + c0;
+      } else if (num >= L2) { /* t = 1 (num / L2 >= 1): the end */
+        double qx = bx - x;
+        d2 = qx * qx + c1;
+      } else {
+        double t = num / L2, qx = ax + t * ex - x, qy = ay + t * ey - y;
+        d2 = qx * qx + qy * qy;
+      }
+      if (d2 < row[i]) row[i] = d2;
+    }
+  }
+}
+
+/* The same for an edge whose L2 is 0 or not finite (edge_d2's t is 0 or
+ * NaN there): the plain expression over the whole box. */
+static void pd_sample_edge_plain(const double *p, const gr_ms_grid *g, const double *xn, int i0, int i1, int j0,
+                                 int j1, double *v) {
+  double ex = p[2] - p[0], ey = p[3] - p[1], L2 = ex * ex + ey * ey;
+  for (int j = j0; j <= j1; j++) {
+    double y = g->y0 + j * g->hy;
+    double *row = v + (size_t)g->nx * j;
+    for (int i = i0; i <= i1; i++) {
+      double x = xn[i];
+      double t = L2 > 0 ? ((x - p[0]) * ex + (y - p[1]) * ey) / L2 : 0;
+      t = t < 0 ? 0 : t > 1 ? 1 : t;
+      double qx = p[0] + t * ex - x, qy = p[1] + t * ey - y, d2 = qx * qx + qy * qy;
+      if (d2 < row[i]) row[i] = d2;
+    }
+  }
+}
+
+/* Sort a row's crossings: insertion sort for the few a row mostly has
+ * (qsort's call overhead dominates there); the order of equal values
+ * cannot change the parity count. */
+static void pd_sort_row(double *x, size_t n) {
+  if (n > 24) { qsort(x, n, sizeof *x, cmp_double); return; }
+  for (size_t k = 1; k < n; k++) {
+    double s = x[k];
+    size_t m = k;
+    for (; m > 0 && x[m - 1] > s; m--) x[m] = x[m - 1];
+    x[m] = s;
+  }
+}
+
 /* Sample sd + b on the grid g (v allocated by the caller): the sign by the
  * even-odd rule along each row (exact), the distance from the buckets
  * within rmax (clamped to rmax farther away). */
 static int pd_sample(const poly_dist *d, const gr_ms_grid *g, double *v,
                      double rmax, gr_err *e) {
   size_t *rs = malloc(((size_t)g->ny + 1) * sizeof *rs);
-  if (!rs) return gr_fail(e, GR_EMEM, "out of memory: %d rows", g->ny);
+  double *xn = malloc(((size_t)g->nx + 1) * sizeof *xn);
+  if (!rs || !xn) { free(rs); free(xn); return gr_fail(e, GR_EMEM, "out of memory: %d rows", g->ny); }
   double *xs = pd_row_crossings(d, g, rs, e);
-  if (!xs) { free(rs); return e->code; }
+  if (!xs) { free(rs); free(xn); return e->code; }
+  for (int i = 0; i < g->nx; i++) xn[i] = g->x0 + i * g->hx;
   /* squared distances: each edge updates the nodes within rmax of it */
   size_t nn = (size_t)g->nx * g->ny;
   for (size_t k = 0; k < nn; k++) v[k] = INFINITY;
+  /* the margin of pd_sample_edge's bounds over rmax: far above the rounding
+   * of d2 and of the bounds, which grows with the coordinates' magnitude */
+  double mag = fabs(g->x0) + fabs(g->y0) + (g->nx - 1) * g->hx + (g->ny - 1) * g->hy;
+  double rr = rmax + 1e-7 * (rmax + mag);
   for (size_t ed = 0; ed < d->ne; ed++) {
     const double *p = d->ab + 4 * ed;
     double ex = p[2] - p[0], ey = p[3] - p[1], L2 = ex * ex + ey * ey;
-    int i0 = (int)floor((fmin(p[0], p[2]) - rmax - g->x0) / g->hx), i1 = (int)ceil((fmax(p[0], p[2]) + rmax - g->x0) / g->hx);
-    int j0 = (int)floor((fmin(p[1], p[3]) - rmax - g->y0) / g->hy), j1 = (int)ceil((fmax(p[1], p[3]) + rmax - g->y0) / g->hy);
+    int i0 = (int)floor((pd_min(p[0], p[2]) - rmax - g->x0) / g->hx), i1 = (int)ceil((pd_max(p[0], p[2]) + rmax - g->x0) / g->hx);
+    int j0 = (int)floor((pd_min(p[1], p[3]) - rmax - g->y0) / g->hy), j1 = (int)ceil((pd_max(p[1], p[3]) + rmax - g->y0) / g->hy);
     if (i0 < 0) i0 = 0;
     if (j0 < 0) j0 = 0;
     if (i1 > g->nx - 1) i1 = g->nx - 1;
     if (j1 > g->ny - 1) j1 = g->ny - 1;
-    for (int j = j0; j <= j1; j++) {
-      double y = g->y0 + j * g->hy;
-      double *row = v + (size_t)g->nx * j;
-      for (int i = i0; i <= i1; i++) {
-        double x = g->x0 + i * g->hx;
-        double t = L2 > 0 ? ((x - p[0]) * ex + (y - p[1]) * ey) / L2 : 0;
-        t = t < 0 ? 0 : t > 1 ? 1 : t;
-        double qx = p[0] + t * ex - x, qy = p[1] + t * ey - y, d2 = qx * qx + qy * qy;
-        if (d2 < row[i]) row[i] = d2;
-      }
-    }
+    if (L2 > 0 && isfinite(L2) && isfinite(rr)) pd_sample_edge(p, g, xn, i0, i1, j0, j1, rr, v);
+    else pd_sample_edge_plain(p, g, xn, i0, i1, j0, j1, v);
   }
   /* signs by scan-line parity */
+  double r2 = rmax * rmax;
   for (int j = 0; j < g->ny; j++) {
-    double *row = xs + rs[j];
+    double *row = xs + rs[j], *vr = v + (size_t)g->nx * j;
     size_t nc = rs[j + 1] - rs[j];
-    qsort(row, nc, sizeof *row, cmp_double);
+    pd_sort_row(row, nc);
     size_t c = 0;
     for (int i = 0; i < g->nx; i++) {
-      double x = g->x0 + i * g->hx;
-      while (c < nc && row[c] <= x) c++;
-      int in = c & 1;
-      double *vv = v + i + (size_t)g->nx * j;
-      double dist = *vv <= rmax * rmax ? sqrt(*vv) : rmax;
-      *vv = (in ? -dist : dist) + d->b;
+      while (c < nc && row[c] <= xn[i]) c++;
+      double dist = vr[i] <= r2 ? sqrt(vr[i]) : rmax;
+      vr[i] = ((c & 1) ? -dist : dist) + d->b;
     }
   }
   free(xs);
   free(rs);
+  free(xn);
   return GR_OK;
 }
 
@@ -329,7 +499,7 @@ static int pd_sample(const poly_dist *d, const gr_ms_grid *g, double *v,
 static int bbox_grid(const gr_rings *r, double cell, gr_ms_grid *g, gr_err *e) {
   double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
   for (size_t k = 0; k < r->npts; k++)
-    for (int c = 0; c < 2; c++) { lo[c] = fmin(lo[c], r->xy[2 * k + c]); hi[c] = fmax(hi[c], r->xy[2 * k + c]); }
+    for (int c = 0; c < 2; c++) { lo[c] = pd_min(lo[c], r->xy[2 * k + c]); hi[c] = pd_max(hi[c], r->xy[2 * k + c]); }
   for (int c = 0; c < 2; c++)
     if (!isfinite(lo[c]) || !isfinite(hi[c])) return gr_fail(e, GR_ENUM, "rings have a non-finite coordinate");
   for (int c = 0; c < 2; c++) if (hi[c] - lo[c] < cell) { double m = 0.5 * (lo[c] + hi[c]); lo[c] = m - cell / 2; hi[c] = m + cell / 2; }
@@ -367,6 +537,8 @@ int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
   double rmax = b + 2 * fmax(g.hx, g.hy);
   rc = pd_build(&d, src, fmax(g.hx, g.hy), e);
   d.b = b;
+  pd_seen seen;
+  if (!rc) d.seen = pd_seen_new(&d, &seen);
   if (!rc) {
     v = malloc((size_t)g.nx * g.ny * sizeof *v);
     if (!v) rc = gr_fail(e, GR_EMEM, "out of memory: offset grid %d x %d", g.nx, g.ny);
@@ -389,6 +561,7 @@ int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
   if (!rc) rc = gr_rings_nest(out, e);
   free(fine);
   free(v);
+  if (d.seen) free(d.seen->mark);
   pd_free(&d);
   gr_rings_free(src);
   return rc;
@@ -419,7 +592,7 @@ double gr_rings_max_inner_distance(const gr_rings *in, double cell, gr_err *e) {
   }
   if (!rc) rc = pd_sample(&d, &g, v, 2 * w + 1, e);
   if (!rc)
-    for (size_t k = 0; k < (size_t)g.nx * g.ny; k++) best = fmax(best, -v[k]);
+    for (size_t k = 0; k < (size_t)g.nx * g.ny; k++) best = pd_max(best, -v[k]);
   free(v);
   pd_free(&d);
   gr_rings_free(src);
@@ -441,14 +614,14 @@ void gr_polydist_free(gr_polydist *p) {
   free(p);
 }
 
-double gr_polydist_at(const gr_polydist *p, double x, double y, double q[2]) { return pd_signed(&p->d, x, y, q); }
+double gr_polydist_at(const gr_polydist *p, double x, double y, double q[2]) { return pd_signed(&p->d, NULL, x, y, q); }
 
 int gr_polydist_within(const gr_polydist *p, double x, double y, double r, size_t *hint) {
   size_t ed;
   double t;
   if (p->d.ne == 0 || !(r >= 0)) return 0;
   if (hint && *hint < p->d.ne && sqrt(edge_d2(p->d.ab + 4 * *hint, x, y, &t)) <= r) return 1;
-  double d2 = pd_nearest(&p->d, x, y, r, 1, &ed, &t);
+  double d2 = pd_search(&p->d, NULL, x, y, r, PD_ANY, &ed, &t);
   if (!(isfinite(d2) && sqrt(d2) <= r)) return 0;
   if (hint) *hint = ed;
   return 1;
