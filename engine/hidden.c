@@ -47,10 +47,12 @@ static inline int edge_suspect(double va, double vb, double vp, double vn, doubl
 /* The scan's classes of the nodes, one byte each: bit 0 inside (v < 0),
  * bit 1 near zero (|v| <= guard; NaN is neither, as in edge_suspect). An
  * edge passes edge_suspect's first test only when its ends share bit 0 and
- * one of them has bit 1, so most of the grid (far from zero) is passed over
- * eight nodes at a time by one test of the near bits of three words: the
- * nodes, their right and their upper neighbours. */
+ * one of them has bit 1: so the candidates are found eight nodes at a time
+ * from three words of classes (the nodes, their right and their upper
+ * neighbours), and only they are read further; most of the grid (far from
+ * zero, or where an edge changes sign) has none. */
 #define NEAR_BITS 0x0202020202020202ull
+#define SIGN_BITS 0x0101010101010101ull
 
 /* Probes of the suspect edges, appended in the order of j, i, then the
  * edge along x before the one along y (the points evaluated, and their
@@ -120,22 +122,35 @@ static int scan_edges(const gr_ms_grid *g, double lip, const double *box, double
     const double *v = g->v + (size_t)nx * j, *vd = j > 0 ? v - nx : NULL;
     const double *vu = j + 1 < ny ? v + nx : NULL, *vuu = j + 2 < ny ? v + 2 * (size_t)nx : NULL;
     for (int i = r[0]; i <= r[1] && !rc; i++) {
+      /* the candidates among the edges from eight nodes at once: byte k
+       * of m has bit 0 for the edge along x from node i + k, bit 1 for
+       * the one along y (one sign, one end near zero) */
+      uint64_t m = 0;
+      int span = 1;
       if (i + 8 <= r[1] + 1) {
         uint64_t a, b, c;
         memcpy(&a, row + i, 8);
         memcpy(&b, row + i + 1, 8);
         memcpy(&c, up + i, 8);
-        if (!((a | b | c) & NEAR_BITS)) { i += 7; continue; }
+        m = ((a | b) & NEAR_BITS) >> 1 & ~(a ^ b) & SIGN_BITS;
+        m |= ((a | c) & NEAR_BITS) & ~(a ^ c) << 1 & NEAR_BITS;
+        span = 8;
+      } else {
+        unsigned c0 = row[i], cr = row[i + 1], cu = up[i];
+        m = (((c0 | cr) >> 1) & ~(c0 ^ cr) & 1) | ((c0 | cu) & ~(c0 ^ cu) << 1 & 2);
       }
-      unsigned c0 = row[i], cr = row[i + 1], cu = up[i];
-      if (!xin[i]) continue;
-      /* the edge along x, then along y: one sign, one end near zero */
-      if (i + 1 < nx && ((c0 | cr) & 2) && !((c0 ^ cr) & 1) &&
-          edge_suspect(v[i], v[i + 1], i > 0 ? v[i - 1] : NAN, i + 2 < nx ? v[i + 2] : NAN, g->hx, lip))
-        rc = add_probes(g, i, j, 0, p);
-      if (!rc && vu && ((c0 | cu) & 2) && !((c0 ^ cu) & 1) &&
-          edge_suspect(v[i], vu[i], vd ? vd[i] : NAN, vuu ? vuu[i] : NAN, g->hy, lip))
-        rc = add_probes(g, i, j, 1, p);
+      for (; m && !rc; m &= m - 1) {
+        int bit = __builtin_ctzll(m), k = i + bit / 8;
+        if (!xin[k]) continue;
+        if (!(bit & 1)) { /* along x: the byte's bit 1 (along y) comes next */
+          if (k + 1 < nx &&
+              edge_suspect(v[k], v[k + 1], k > 0 ? v[k - 1] : NAN, k + 2 < nx ? v[k + 2] : NAN, g->hx, lip))
+            rc = add_probes(g, k, j, 0, p);
+        } else if (vu && edge_suspect(v[k], vu[k], vd ? vd[k] : NAN, vuu ? vuu[k] : NAN, g->hy, lip)) {
+          rc = add_probes(g, k, j, 1, p);
+        }
+      }
+      i += span - 1;
     }
   }
   free(cls);
