@@ -21,7 +21,9 @@
  * there (the inner contour) is narrower than the grid. */
 #include "march.h"
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 
 #define HID_JUMP 1.5
 #define HID_GUARD 2.0
@@ -29,24 +31,130 @@
 #define HID_LEVELS 2
 #define HID_DEPTH 1e-3
 
-/* Value of g at node (i, j), NAN outside. */
-static double grid_at(const gr_ms_grid *g, int i, int j) {
-  return i < 0 || j < 0 || i >= g->nx || j >= g->ny ? NAN : g->v[i + (size_t)g->nx * j];
-}
-
-/* Does the grid edge from node a = (i, j) to b = a + (di, dj) need probing?
- * Its values va, vb; the nodes before a and after b (vp, vn) are read only
- * when va, vb pass the first tests (most edges do not). lip > 0: f's slope
- * is at most lip (a distance: 1), so f can reach zero between the nodes only
- * if |va| + |vb| <= lip h. */
-static int edge_suspect(const gr_ms_grid *g, int i, int j, int di, int dj, double guard, double lip) {
-  double va = g->v[i + (size_t)g->nx * j], vb = g->v[i + di + (size_t)g->nx * (j + dj)], h = dj ? g->hy : g->hx;
-  if ((va < 0) != (vb < 0) || !(fmin(fabs(va), fabs(vb)) <= guard)) return 0;
+/* Does a grid edge of length h, its ends' values va, vb of one sign and
+ * one of them within the guard of zero (the scan's classes tell, and
+ * spare the rest of the grid these reads), need probing? vp, vn: the values
+ * at the nodes before a and after b (NaN past the grid's border). lip > 0:
+ * f's slope is at most lip (a distance: 1), so f can reach zero between the
+ * nodes only if |va| + |vb| <= lip h. */
+static inline int edge_suspect(double va, double vb, double vp, double vn, double h, double lip) {
   if (lip > 0 && fabs(va) + fabs(vb) > lip * h) return 0;
-  double vp = grid_at(g, i - di, j - dj), vn = grid_at(g, i + 2 * di, j + 2 * dj);
   double s = va < 0 ? 1 : -1; /* s * f rises towards zero */
   if (s * (2 * va - vp) >= 0 || s * (2 * vb - vn) >= 0) return 1; /* NaN compares false */
   return fabs(va - vb) > HID_JUMP * h;
+}
+
+/* The scan's classes of the nodes, one byte each: bit 0 inside (v < 0),
+ * bit 1 near zero (|v| <= guard; NaN is neither, as in edge_suspect). An
+ * edge passes edge_suspect's first test only when its ends share bit 0 and
+ * one of them has bit 1: so the candidates are found eight nodes at a time
+ * from three words of classes (the nodes, their right and their upper
+ * neighbours), and only they are read further; most of the grid (far from
+ * zero, or where an edge changes sign) has none. */
+#define NEAR_BITS 0x0202020202020202ull
+#define SIGN_BITS 0x0101010101010101ull
+
+/* Probes of the suspect edges, appended in the order of j, i, then the
+ * edge along x before the one along y (the points evaluated, and their
+ * order, are those of a scan of every node): sign[] of the first node of
+ * each edge, S - 1 probes each. */
+typedef struct probes {
+  double *px, *py;
+  int *sign;
+  size_t n, cap, ne, cape;
+} probes;
+
+static int add_probes(const gr_ms_grid *g, int i, int j, int dir, probes *p) {
+  const int S = HID_PROBE, di = dir == 0, dj = dir == 1;
+  size_t c1 = p->cape, c2 = p->cap, c3 = p->cap;
+  if (gr_grow(&p->sign, &c1, p->ne + 1, sizeof *p->sign) || gr_grow(&p->px, &c2, p->n + S, sizeof *p->px) ||
+      gr_grow(&p->py, &c3, p->n + S, sizeof *p->py))
+    return GR_EMEM;
+  p->cape = c1;
+  p->cap = c2;
+  p->sign[p->ne++] = g->v[i + (size_t)g->nx * j] < 0;
+  for (int a = 1; a < S; a++) {
+    p->px[p->n] = g->x0 + (i + di * (double)a / S) * g->hx;
+    p->py[p->n++] = g->y0 + (j + dj * (double)a / S) * g->hy;
+  }
+  return GR_OK;
+}
+
+/* The nodes within the box (NULL: all): xin[i], yin[j] mark the columns
+ * and rows it keeps (the tests made at every node before, now once per
+ * column and row), r the first and last of each (x0 + i hx grows with i,
+ * so the marks form runs; the scan still reads them). */
+static void box_range(const gr_ms_grid *g, const double *box, unsigned char *xin, unsigned char *yin, int r[4]) {
+  r[0] = g->nx;
+  r[1] = -1;
+  r[2] = g->ny;
+  r[3] = -1;
+  for (int i = 0; i < g->nx; i++) {
+    double x = g->x0 + i * g->hx;
+    xin[i] = !box || !(x < box[0] - 2 * g->hx || x > box[2] + g->hx);
+    if (xin[i]) { r[0] = r[0] < i ? r[0] : i; r[1] = i; }
+  }
+  for (int j = 0; j < g->ny; j++) {
+    double y = g->y0 + j * g->hy;
+    yin[j] = !box || !(y < box[1] - 2 * g->hy || y > box[3] + g->hy);
+    if (yin[j]) { r[2] = r[2] < j ? r[2] : j; r[3] = j; }
+  }
+}
+
+/* The suspect edges of g (edge_suspect) from the nodes in the box, their
+ * probes appended to p. */
+static int scan_edges(const gr_ms_grid *g, double lip, const double *box, double guard, probes *p) {
+  int nx = g->nx, ny = g->ny, r[4];
+  size_t nn = (size_t)nx * ny;
+  unsigned char *cls = malloc(nn + (size_t)nx + 8 + (size_t)nx + (size_t)ny), *xin = cls + nn + nx + 8, *yin = xin + nx;
+  if (!cls) return GR_EMEM;
+  box_range(g, box, xin, yin, r);
+  /* the rows read: j0 .. j1 + 1; past the last row nx + 8 zero bytes (no
+   * node near) stand for the row above it and for words read past its end */
+  int jr1 = r[3] + 1 < ny ? r[3] + 1 : ny - 1;
+  for (size_t k = (size_t)nx * r[2]; k < (size_t)nx * (jr1 + 1); k++)
+    cls[k] = (unsigned char)((g->v[k] < 0) | (fabs(g->v[k]) <= guard) << 1);
+  memset(cls + nn, 0, (size_t)nx + 8);
+  int rc = GR_OK;
+  for (int j = r[2]; j <= r[3] && !rc; j++) {
+    if (!yin[j]) continue;
+    const unsigned char *row = cls + (size_t)nx * j, *up = j + 1 < ny ? row + nx : cls + nn;
+    const double *v = g->v + (size_t)nx * j, *vd = j > 0 ? v - nx : NULL;
+    const double *vu = j + 1 < ny ? v + nx : NULL, *vuu = j + 2 < ny ? v + 2 * (size_t)nx : NULL;
+    for (int i = r[0]; i <= r[1] && !rc; i++) {
+      /* the candidates among the edges from eight nodes at once: byte k
+       * of m has bit 0 for the edge along x from node i + k, bit 1 for
+       * the one along y (one sign, one end near zero) */
+      uint64_t m = 0;
+      int span = 1;
+      if (i + 8 <= r[1] + 1) {
+        uint64_t a, b, c;
+        memcpy(&a, row + i, 8);
+        memcpy(&b, row + i + 1, 8);
+        memcpy(&c, up + i, 8);
+        m = ((a | b) & NEAR_BITS) >> 1 & ~(a ^ b) & SIGN_BITS;
+        m |= ((a | c) & NEAR_BITS) & ~(a ^ c) << 1 & NEAR_BITS;
+        span = 8;
+      } else {
+        unsigned c0 = row[i], cr = row[i + 1], cu = up[i];
+        m = (((c0 | cr) >> 1) & ~(c0 ^ cr) & 1) | ((c0 | cu) & ~(c0 ^ cu) << 1 & 2);
+      }
+      for (; m && !rc; m &= m - 1) {
+        int bit = __builtin_ctzll(m), k = i + bit / 8;
+        if (!xin[k]) continue;
+        if (!(bit & 1)) { /* along x: the byte's bit 1 (along y) comes next */
+          if (k + 1 < nx &&
+              edge_suspect(v[k], v[k + 1], k > 0 ? v[k - 1] : NAN, k + 2 < nx ? v[k + 2] : NAN, g->hx, lip))
+            rc = add_probes(g, k, j, 0, p);
+        } else if (vu && edge_suspect(v[k], vu[k], vd ? vd[k] : NAN, vuu ? vuu[k] : NAN, g->hy, lip)) {
+          rc = add_probes(g, k, j, 1, p);
+        }
+      }
+      i += span - 1;
+    }
+  }
+  free(cls);
+  return rc;
 }
 
 /* *hidden = 1 if a probe between two nodes of one sign has the other sign. */
@@ -55,44 +163,20 @@ static int hidden_boundary(const gr_ms_grid *g, double lip, const double *box, g
   const int S = HID_PROBE;
   double guard = HID_GUARD * hypot(g->hx, g->hy);
   if (lip > 0) guard = fmin(guard, lip * fmax(g->hx, g->hy));
-  double *px = NULL, *py = NULL, *pv = NULL;
-  int *sign = NULL;
-  size_t n = 0, cap = 0, ne = 0, cape = 0;
-  int rc = GR_OK;
+  probes p = {0};
+  double *pv = NULL;
   *hidden = 0;
-  for (int j = 0; j < g->ny && !rc; j++)
-    for (int i = 0; i < g->nx && !rc; i++) {
-      if (box) {
-        double x = g->x0 + i * g->hx, y = g->y0 + j * g->hy;
-        if (x < box[0] - 2 * g->hx || x > box[2] + g->hx || y < box[1] - 2 * g->hy || y > box[3] + g->hy) continue;
-      }
-      for (int dir = 0; dir < 2; dir++) {
-        int di = dir == 0, dj = dir == 1;
-        if (i + di >= g->nx || j + dj >= g->ny) continue;
-        if (!edge_suspect(g, i, j, di, dj, guard, lip)) continue;
-        size_t c1 = cape, c2 = cap, c3 = cap, c4 = cap;
-        if (gr_grow(&sign, &c1, ne + 1, sizeof *sign) || gr_grow(&px, &c2, n + S, sizeof *px) ||
-            gr_grow(&py, &c3, n + S, sizeof *py) || gr_grow(&pv, &c4, n + S, sizeof *pv)) {
-          rc = gr_fail(e, GR_EMEM, "out of memory probing %zu grid edges", ne);
-          break;
-        }
-        cape = c1;
-        cap = c2;
-        sign[ne++] = g->v[i + (size_t)g->nx * j] < 0;
-        for (int a = 1; a < S; a++) {
-          px[n] = g->x0 + (i + di * (double)a / S) * g->hx;
-          py[n++] = g->y0 + (j + dj * (double)a / S) * g->hy;
-        }
-      }
-    }
-  if (!rc && n) rc = gr_ms_eval(fn, ud, n, px, py, pv, e);
+  int rc = scan_edges(g, lip, box, guard, &p);
+  if (rc) rc = gr_fail(e, GR_EMEM, "out of memory probing %zu grid edges", p.ne);
+  if (!rc && p.n && !(pv = malloc(p.n * sizeof *pv))) rc = gr_fail(e, GR_EMEM, "out of memory probing %zu grid edges", p.ne);
+  if (!rc && p.n) rc = gr_ms_eval(fn, ud, p.n, p.px, p.py, pv, e);
   /* the other sign by more than HID_DEPTH (1 um): a void (or solid) that
    * shallow is under about 2 um wide, and fields that differ in the last
    * digits (shared closest points or not) must not decide differently on
    * it (the finer grid moves contours elsewhere within the chord tolerance) */
-  for (size_t k = 0; !rc && k < n && !*hidden; k++)
-    *hidden = sign[k / (size_t)(S - 1)] ? pv[k] > HID_DEPTH : pv[k] < -HID_DEPTH;
-  free(px); free(py); free(pv); free(sign);
+  for (size_t k = 0; !rc && k < p.n && !*hidden; k++)
+    *hidden = p.sign[k / (size_t)(S - 1)] ? pv[k] > HID_DEPTH : pv[k] < -HID_DEPTH;
+  free(p.px); free(p.py); free(pv); free(p.sign);
   return rc;
 }
 

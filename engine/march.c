@@ -1,6 +1,7 @@
 /* march.c: marching squares with refined crossings, see march.h. */
 #include "march.h"
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -26,24 +27,25 @@ static int roots_batch(gr_slice_fn fn, gr_slice_grad_fn gfn, void *ud, size_t n,
                        const double *Q, const double *fp, const double *fq,
                        int refine, double tol, double *out, gr_err *e) {
   if (n == 0) return GR_OK;
-  double *ta = malloc(n * sizeof *ta), *tb = malloc(n * sizeof *tb);
-  double *fa = malloc(n * sizeof *fa), *fb = malloc(n * sizeof *fb);
-  double *len = malloc(n * sizeof *len), *tn = malloc(n * sizeof *tn);
-  int *side = calloc(n, sizeof *side);
+  /* one block for the per-segment arrays (this runs once a contour and
+   * once a chord pass, on a few hundred to many thousand segments) */
+  double *ta = malloc(12 * n * sizeof *ta);
   size_t *act = malloc(n * sizeof *act);
-  double *qx = malloc(n * sizeof *qx), *qy = malloc(n * sizeof *qy);
-  double *qt = malloc(n * sizeof *qt), *qf = malloc(n * sizeof *qf);
-  double *gx = malloc(n * sizeof *gx), *gy = malloc(n * sizeof *gy);
+  signed char *side = calloc(n, 1);
   int rc = GR_OK;
-  if (!ta || !tb || !fa || !fb || !len || !tn || !side || !act || !qx || !qy || !qt || !qf || !gx || !gy) {
+  if (!ta || !act || !side) {
     rc = gr_fail(e, GR_EMEM, "out of memory refining %zu crossings", n);
     goto done;
   }
+  double *tb = ta + n, *fa = tb + n, *fb = fa + n, *len = fb + n, *tn = len + n;
+  double *qx = tn + n, *qy = qx + n, *qt = qy + n, *qf = qt + n, *gx = qf + n, *gy = gx + n;
   size_t na = 0;
   for (size_t k = 0; k < n; k++) {
     ta[k] = 0; tb[k] = 1; fa[k] = fp[k]; fb[k] = fq[k];
     tn[k] = NAN;
-    len[k] = hypot(Q[2 * k] - P[2 * k], Q[2 * k + 1] - P[2 * k + 1]);
+    /* a grid edge runs along x or y: hypot(d, 0) is |d| exactly (C11 F.10.4.3) */
+    double dx = Q[2 * k] - P[2 * k], dy = Q[2 * k + 1] - P[2 * k + 1];
+    len[k] = dy == 0 ? fabs(dx) : dx == 0 ? fabs(dy) : hypot(dx, dy);
     if (refine && len[k] > tol && fb[k] != 0) act[na++] = k;
   }
   for (int it = 0; it < 200 && na > 0; it++) {
@@ -105,8 +107,7 @@ static int roots_batch(gr_slice_fn fn, gr_slice_grad_fn gfn, void *ud, size_t n,
     out[2 * k + 1] = P[2 * k + 1] + t * (Q[2 * k + 1] - P[2 * k + 1]);
   }
 done:
-  free(ta); free(tb); free(fa); free(fb); free(len); free(tn); free(side); free(act);
-  free(qx); free(qy); free(qt); free(qf); free(gx); free(gy);
+  free(ta); free(side); free(act);
   return rc;
 }
 
@@ -150,6 +151,145 @@ int gr_ms_emit_ring(gr_rings *out, double *xy, size_t n) {
   return gr_rings_add(out, xy, m);
 }
 
+/* The scans below read the padded grid's inside flags (one byte a node,
+ * in[I + NX J]) eight at a time: a word of nodes equal to the word of
+ * their right neighbours and to that of their upper ones (and, for cells,
+ * the upper ones' right neighbours) holds no crossing edge and no mixed
+ * cell, and most of the grid, away from the boundary, is passed over so.
+ * The flags are followed by a row of zeros (the pad row's upper
+ * neighbours) and 8 more bytes for words read past the end; a word read
+ * past a row's end compares pad nodes (0) with pad nodes. */
+static inline uint64_t ms_word(const unsigned char *p) {
+  uint64_t w;
+  memcpy(&w, p, sizeof w);
+  return w;
+}
+
+/* The crossing edges (sign change) of the padded grid, in the order of the
+ * node (I, J) they start from (J, then I) and along x before along y: edge
+ * id 2 (I + NX J) + dir, cross[id] its crossing's index (only crossing
+ * edges' entries are set: only those are read). P (inside end) and Q
+ * (outside end) 2 each, fp, fq their values: the bracket for roots_batch. */
+typedef struct ms_cross {
+  double *P, *Q, *fp, *fq;
+  size_t n, cap;
+} ms_cross;
+
+static int ms_add_cross(const gr_ms_grid *g, int I, int J, int dir, ms_cross *c) {
+  int I1 = I + (dir == 0), J1 = J + (dir == 1);
+  if (c->n + 1 > c->cap) {
+    size_t a = c->cap, b = c->cap, d = c->cap, f = c->cap;
+    if (gr_grow(&c->P, &a, c->n + 1, 2 * sizeof(double)) || gr_grow(&c->Q, &b, c->n + 1, 2 * sizeof(double)) ||
+        gr_grow(&c->fp, &d, c->n + 1, sizeof(double)) || gr_grow(&c->fq, &f, c->n + 1, sizeof(double)))
+      return GR_EMEM;
+    c->cap = a;
+  }
+  double v0 = node_v(g, I, J), v1 = node_v(g, I1, J1);
+  /* inside end first */
+  int inI = v0 < 0 ? I : I1, inJ = v0 < 0 ? J : J1;
+  int ouI = v0 < 0 ? I1 : I, ouJ = v0 < 0 ? J1 : J;
+  size_t k = c->n++;
+  c->P[2 * k] = node_x(g, inI); c->P[2 * k + 1] = node_y(g, inJ);
+  c->Q[2 * k] = node_x(g, ouI); c->Q[2 * k + 1] = node_y(g, ouJ);
+  c->fp[k] = v0 < 0 ? v0 : v1;
+  c->fq[k] = v0 < 0 ? v1 : v0;
+  return GR_OK;
+}
+
+static int ms_crossings(const gr_ms_grid *g, const unsigned char *in, int *cross, ms_cross *c) {
+  int NX = g->nx + 2, NY = g->ny + 2;
+  /* room for a few rings across the window first (fewer reallocations) */
+  size_t a = 0, b = 0, d = 0, f = 0, guess = 4 * ((size_t)NX + NY);
+  if (gr_grow(&c->P, &a, guess, 2 * sizeof(double)) || gr_grow(&c->Q, &b, guess, 2 * sizeof(double)) ||
+      gr_grow(&c->fp, &d, guess, sizeof(double)) || gr_grow(&c->fq, &f, guess, sizeof(double)))
+    return GR_EMEM;
+  c->cap = a;
+  for (int J = 0; J < NY; J++) {
+    const unsigned char *row = in + (size_t)NX * J, *up = row + NX;
+    for (int I = 0; I < NX; I++) {
+      if (I + 8 <= NX && !((ms_word(row + I) ^ ms_word(row + I + 1)) | (ms_word(row + I) ^ ms_word(up + I)))) {
+        I += 7;
+        continue;
+      }
+      for (int dir = 0; dir < 2; dir++) {
+        if (dir ? J + 1 >= NY || row[I] == up[I] : I + 1 >= NX || row[I] == row[I + 1]) continue;
+        if (ms_add_cross(g, I, J, dir, c)) return GR_EMEM;
+        cross[2 * ((size_t)I + (size_t)NX * J) + dir] = (int)(c->n - 1);
+      }
+    }
+  }
+  return GR_OK;
+}
+
+/* The mixed cells (corners of both signs), in the order of (J, I): cell
+ * (I, J) and its corners' flags m (bit k: corner k inside, counter-clockwise
+ * from (I, J)); the saddles among them (m 5 or 10) with their centres, to be
+ * decided by fn there. */
+typedef struct ms_cells {
+  int *ij;
+  unsigned char *m;
+  size_t n, cap;
+  double *cx, *cy;
+  size_t ns, caps;
+} ms_cells;
+
+static int ms_mixed_cells(const gr_ms_grid *g, const unsigned char *in, size_t ncr, ms_cells *c) {
+  int NX = g->nx + 2, NY = g->ny + 2;
+  /* room for all: a mixed cell has two crossing edges or four, each edge
+   * in two cells at most, so there are at most ncr mixed cells and ncr / 2
+   * saddles */
+  size_t a = 0, b = 0, d = 0, f = 0;
+  if (gr_grow(&c->ij, &a, ncr, 2 * sizeof *c->ij) || gr_grow(&c->m, &b, ncr, 1) ||
+      gr_grow(&c->cx, &d, ncr / 2 + 1, sizeof *c->cx) || gr_grow(&c->cy, &f, ncr / 2 + 1, sizeof *c->cy))
+    return GR_EMEM;
+  c->cap = a < b ? a : b;
+  c->caps = d < f ? d : f;
+  for (int J = 0; J + 1 < NY; J++) {
+    const unsigned char *row = in + (size_t)NX * J, *up = row + NX;
+    for (int I = 0; I + 1 < NX; I++) {
+      if (I + 9 <= NX) {
+        uint64_t w = ms_word(row + I);
+        if (!((w ^ ms_word(row + I + 1)) | (w ^ ms_word(up + I)) | (w ^ ms_word(up + I + 1)))) {
+          I += 7;
+          continue;
+        }
+      }
+      int m = row[I] | row[I + 1] << 1 | up[I + 1] << 2 | up[I] << 3;
+      if (m == 0 || m == 15) continue;
+      if (c->n + 1 > c->cap) {
+        size_t ca = c->cap, cb = c->cap;
+        if (gr_grow(&c->ij, &ca, c->n + 1, 2 * sizeof *c->ij) || gr_grow(&c->m, &cb, c->n + 1, 1)) return GR_EMEM;
+        c->cap = ca;
+      }
+      c->ij[2 * c->n] = I;
+      c->ij[2 * c->n + 1] = J;
+      c->m[c->n++] = (unsigned char)m;
+      if (m != 5 && m != 10) continue;
+      if (c->ns + 1 > c->caps) {
+        size_t ca = c->caps, cb = c->caps;
+        if (gr_grow(&c->cx, &ca, c->ns + 1, sizeof *c->cx) || gr_grow(&c->cy, &cb, c->ns + 1, sizeof *c->cy)) return GR_EMEM;
+        c->caps = ca;
+      }
+      c->cx[c->ns] = 0.5 * (node_x(g, I) + node_x(g, I + 1));
+      c->cy[c->ns++] = 0.5 * (node_y(g, J) + node_y(g, J + 1));
+    }
+  }
+  return GR_OK;
+}
+
+/* For a cell of corner flags m (bit k: corner k inside, corners and edges
+ * counted counter-clockwise from the bottom: edge k joins corners k and
+ * k + 1) and a crossing X at edge k (in->out), the edge y of the out->in
+ * crossing joined to it: the next one counter-clockwise when the centre is
+ * inside, else the previous one (-1: no X at k). MS_LINK[centre_in][m][k]. */
+static const signed char MS_LINK[2][16][4] = {
+    {{-1, -1, -1, -1}, {3, -1, -1, -1}, {-1, 0, -1, -1}, {-1, 3, -1, -1}, {-1, -1, 1, -1}, {3, -1, 1, -1},
+     {-1, -1, 0, -1}, {-1, -1, 3, -1}, {-1, -1, -1, 2}, {2, -1, -1, -1}, {-1, 0, -1, 2}, {-1, 2, -1, -1},
+     {-1, -1, -1, 1}, {1, -1, -1, -1}, {-1, -1, -1, 0}, {-1, -1, -1, -1}},
+    {{-1, -1, -1, -1}, {3, -1, -1, -1}, {-1, 0, -1, -1}, {-1, 3, -1, -1}, {-1, -1, 1, -1}, {1, -1, 3, -1},
+     {-1, -1, 0, -1}, {-1, -1, 3, -1}, {-1, -1, -1, 2}, {2, -1, -1, -1}, {-1, 2, -1, 0}, {-1, 2, -1, -1},
+     {-1, -1, -1, 1}, {1, -1, -1, -1}, {-1, -1, -1, 0}, {-1, -1, -1, -1}}};
+
 /* Contour {fn < 0} from the sampled grid: crossings on grid edges refined on
  * fn, saddles decided by fn at the cell centre, segments oriented with the
  * inside on the left and chained by edge id into closed rings (appended to
@@ -157,108 +297,54 @@ int gr_ms_emit_ring(gr_rings *out, double *xy, size_t n) {
 int gr_ms_contour(const gr_ms_grid *g, gr_slice_fn fn, gr_slice_grad_fn gfn, void *ud, int refine,
                       double tol, gr_rings *out, gr_err *e) {
   int NX = g->nx + 2, NY = g->ny + 2;
-  size_t nedge = 2 * (size_t)NX * NY;
+  size_t nn = (size_t)NX * NY;
   int rc = GR_OK;
-  int *cross = malloc(nedge * sizeof *cross);
-  unsigned char *in = malloc((size_t)NX * NY); /* padded node (I, J) inside: in[I + NX J] */
-  double *P = NULL, *Q = NULL, *fp = NULL, *fq = NULL, *pt = NULL;
-  int *next = NULL, *sad = NULL;
-  double *cx = NULL, *cy = NULL, *cv = NULL, *ring = NULL;
-  size_t ncr = 0, capcr = 0, nsad = 0, capsad = 0;
+  int *cross = malloc(2 * nn * sizeof *cross);
+  unsigned char *in = calloc(nn + (size_t)NX + 8, 1); /* padded node (I, J) inside: in[I + NX J] */
+  ms_cross cr = {0};
+  ms_cells cl = {0};
+  double *pt = NULL, *cv = NULL, *ring = NULL;
+  int *next = NULL;
   if (!cross || !in) {
     free(cross);
     free(in);
     return gr_fail(e, GR_EMEM, "out of memory: marching squares on %dx%d nodes", g->nx, g->ny);
   }
-  for (int J = 0; J < NY; J++)
-    for (int I = 0; I < NX; I++) in[I + (size_t)NX * J] = node_v(g, I, J) < 0;
-#define IN(I, J) in[(I) + (size_t)NX * (J)]
-  /* 1. crossing edges: H(I,J) = (I,J)-(I+1,J) id 2*(I+NX*J); V(I,J) = (I,J)-(I,J+1) id +1 */
-  for (int J = 0; J < NY; J++)
-    for (int I = 0; I < NX; I++) {
-      for (int dir = 0; dir < 2; dir++) {
-        size_t id = 2 * ((size_t)I + (size_t)NX * J) + dir;
-        cross[id] = -1;
-        int I1 = I + (dir == 0), J1 = J + (dir == 1);
-        if (I1 >= NX || J1 >= NY || IN(I, J) == IN(I1, J1)) continue;
-        double v0 = node_v(g, I, J), v1 = node_v(g, I1, J1);
-        if (ncr + 1 > capcr) {
-          size_t c = capcr;
-          if (gr_grow(&P, &c, ncr + 1, 2 * sizeof(double)) || (c = capcr, gr_grow(&Q, &c, ncr + 1, 2 * sizeof(double))) ||
-              (c = capcr, gr_grow(&fp, &c, ncr + 1, sizeof(double))) || (c = capcr, gr_grow(&fq, &c, ncr + 1, sizeof(double)))) {
-            rc = gr_fail(e, GR_EMEM, "out of memory: %zu crossings", ncr);
-            goto done;
-          }
-          capcr = c;
-        }
-        /* inside end first */
-        int inI = v0 < 0 ? I : I1, inJ = v0 < 0 ? J : J1;
-        int ouI = v0 < 0 ? I1 : I, ouJ = v0 < 0 ? J1 : J;
-        P[2 * ncr] = node_x(g, inI); P[2 * ncr + 1] = node_y(g, inJ);
-        Q[2 * ncr] = node_x(g, ouI); Q[2 * ncr + 1] = node_y(g, ouJ);
-        fp[ncr] = v0 < 0 ? v0 : v1;
-        fq[ncr] = v0 < 0 ? v1 : v0;
-        cross[id] = (int)ncr++;
-      }
-    }
+  for (int j = 0; j < g->ny; j++) {
+    unsigned char *row = in + (size_t)NX * (j + 1) + 1;
+    const double *v = g->v + (size_t)g->nx * j;
+    for (int i = 0; i < g->nx; i++) row[i] = v[i] < 0;
+  }
+  /* 1. crossing edges, refined */
+  if (ms_crossings(g, in, cross, &cr)) { rc = gr_fail(e, GR_EMEM, "out of memory: %zu crossings", cr.n); goto done; }
+  size_t ncr = cr.n;
   if (ncr == 0) goto done;
   pt = malloc(2 * ncr * sizeof *pt);
   next = malloc(ncr * sizeof *next);
   if (!pt || !next) { rc = gr_fail(e, GR_EMEM, "out of memory: %zu crossings", ncr); goto done; }
-  rc = roots_batch(fn, gfn, ud, ncr, P, Q, fp, fq, refine, tol, pt, e);
+  rc = roots_batch(fn, gfn, ud, ncr, cr.P, cr.Q, cr.fp, cr.fq, refine, tol, pt, e);
   if (rc) goto done;
-  /* 2. saddle cells: centre value on the true function */
-  for (int J = 0; J + 1 < NY; J++)
-    for (int I = 0; I + 1 < NX; I++) {
-      int a = IN(I, J), b = IN(I + 1, J), c = IN(I + 1, J + 1), d = IN(I, J + 1);
-      if (!((a && c && !b && !d) || (b && d && !a && !c))) continue;
-      if (nsad + 1 > capsad) {
-        size_t cc = capsad;
-        if (gr_grow(&sad, &cc, nsad + 1, 2 * sizeof(int)) || (cc = capsad, gr_grow(&cx, &cc, nsad + 1, sizeof(double))) ||
-            (cc = capsad, gr_grow(&cy, &cc, nsad + 1, sizeof(double))) || (cc = capsad, gr_grow(&cv, &cc, nsad + 1, sizeof(double)))) {
-          rc = gr_fail(e, GR_EMEM, "out of memory: %zu saddles", nsad);
-          goto done;
-        }
-        capsad = cc;
-      }
-      sad[2 * nsad] = I; sad[2 * nsad + 1] = J;
-      cx[nsad] = 0.5 * (node_x(g, I) + node_x(g, I + 1));
-      cy[nsad] = 0.5 * (node_y(g, J) + node_y(g, J + 1));
-      nsad++;
-    }
-  if (nsad) {
-    rc = gr_ms_eval(fn, ud, nsad, cx, cy, cv, e);
+  /* 2. mixed cells; saddles: centre value on the true function */
+  if (ms_mixed_cells(g, in, ncr, &cl)) { rc = gr_fail(e, GR_EMEM, "out of memory: %zu saddles", cl.ns); goto done; }
+  if (cl.ns) {
+    if (!(cv = malloc(cl.ns * sizeof *cv))) { rc = gr_fail(e, GR_EMEM, "out of memory: %zu saddles", cl.ns); goto done; }
+    rc = gr_ms_eval(fn, ud, cl.ns, cl.cx, cl.cy, cv, e);
     if (rc) goto done;
   }
   /* 3. segments: walk the cell boundary CCW (edges e0 bottom, e1 right,
    * e2 top, e3 left); an in->out crossing X is joined to the out->in
    * crossing Y that follows it (centre inside) or precedes it (outside). */
   for (size_t k = 0; k < ncr; k++) next[k] = -1;
-  size_t s = 0;
-  for (int J = 0; J + 1 < NY; J++)
-    for (int I = 0; I + 1 < NX; I++) {
-      int ins[4] = {IN(I, J), IN(I + 1, J), IN(I + 1, J + 1), IN(I, J + 1)};
-      int m = ins[0] | ins[1] << 1 | ins[2] << 2 | ins[3] << 3;
-      if (m == 0 || m == 15) continue;
-      size_t ids[4] = {2 * ((size_t)I + (size_t)NX * J), 2 * ((size_t)I + 1 + (size_t)NX * J) + 1,
-                       2 * ((size_t)I + (size_t)NX * (J + 1)), 2 * ((size_t)I + (size_t)NX * J) + 1};
-      int centre_in = 0;
-      if (m == 5 || m == 10) {
-        while (s < nsad && (sad[2 * s + 1] < J || (sad[2 * s + 1] == J && sad[2 * s] < I))) s++;
-        centre_in = s < nsad && sad[2 * s] == I && sad[2 * s + 1] == J && cv[s] < 0;
-      }
-      for (int k = 0; k < 4; k++) {
-        if (!(ins[k] && !ins[(k + 1) & 3])) continue; /* X at edge k */
-        int y = -1;
-        if (centre_in) {
-          for (int q = 1; q < 4; q++) { int kk = (k + q) & 3; if (!ins[kk] && ins[(kk + 1) & 3]) { y = kk; break; } }
-        } else {
-          for (int q = 1; q < 4; q++) { int kk = (k - q + 4) & 3; if (!ins[kk] && ins[(kk + 1) & 3]) { y = kk; break; } }
-        }
-        if (y < 0) continue;
-        next[cross[ids[k]]] = cross[ids[y]];
-      }
+  for (size_t c = 0, s = 0; c < cl.n; c++) {
+    size_t I = (size_t)cl.ij[2 * c], J = (size_t)cl.ij[2 * c + 1];
+    int m = cl.m[c], centre_in = 0;
+    if (m == 5 || m == 10) centre_in = cv[s++] < 0;
+    size_t ids[4] = {2 * (I + NX * J), 2 * (I + 1 + NX * J) + 1, 2 * (I + NX * (J + 1)), 2 * (I + NX * J) + 1};
+    for (int k = 0; k < 4; k++) {
+      int y = MS_LINK[centre_in][m][k];
+      if (y >= 0) next[cross[ids[k]]] = cross[ids[y]];
     }
+  }
   /* 4. chain */
   ring = malloc(2 * (ncr + 1) * sizeof *ring);
   if (!ring) { rc = gr_fail(e, GR_EMEM, "out of memory: %zu crossings", ncr); goto done; }
@@ -277,10 +363,9 @@ int gr_ms_contour(const gr_ms_grid *g, gr_slice_fn fn, gr_slice_grad_fn gfn, voi
     rc = gr_ms_emit_ring(out, ring, n);
     if (rc) { rc = gr_fail(e, GR_EMEM, "out of memory storing rings"); goto done; }
   }
-#undef IN
 done:
-  free(cross); free(in); free(P); free(Q); free(fp); free(fq); free(pt); free(next);
-  free(sad); free(cx); free(cy); free(cv); free(ring);
+  free(cross); free(in); free(cr.P); free(cr.Q); free(cr.fp); free(cr.fq); free(pt); free(next);
+  free(cl.ij); free(cl.m); free(cl.cx); free(cl.cy); free(cv); free(ring);
   return rc;
 }
 
