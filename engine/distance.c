@@ -549,9 +549,10 @@ int gr_offset_closest(const gr_field *f_, size_t n, const double *x, const doubl
 }
 
 /* Values from closest points q and signed distances sd; p (NULL: q) the
- * points themselves, for the owning voxel. */
-static int values_at(const offset *f, size_t n, const double *p, const double *q, const double *sd, double *out,
-                     gr_err *e) {
+ * points themselves, for the owning voxel. Points farther than band from H
+ * (|sd| > band) are taken as far, as those without a closest point are. */
+static int values_at(const offset *f, size_t n, const double *p, const double *q, const double *sd, double band,
+                     double *out, gr_err *e) {
   enum { B = 256 };
   double qx[B], qy[B], qz[B], tt[B], ti[B], px[B], py[B], pz[B];
   const double *pk[3] = {px, py, pz};
@@ -560,7 +561,7 @@ static int values_at(const offset *f, size_t n, const double *p, const double *q
     size_t m = n - s < B ? n - s : B, k = 0;
     for (size_t i = 0; i < m; i++) {
       const double *qi = q + 3 * (s + i);
-      if (isnan(qi[0])) { /* far from H: a bound with the right sign */
+      if (isnan(qi[0]) || fabs(sd[s + i]) > band) { /* far from H: a bound with the right sign */
         out[s + i] = offset_value(f, sd[s + i], f->tmax, f->tmax);
         continue;
       }
@@ -581,7 +582,14 @@ static int values_at(const offset *f, size_t n, const double *p, const double *q
 int gr_offset_values(const gr_field *f_, size_t n, double *q, double *sd, double *out, gr_err *e) {
   const offset *f = gr_field_callback_data(f_, offset_eval);
   if (!f) return gr_fail(e, GR_EARG, "offset values need an offset field");
-  return values_at(f, n, NULL, q, sd, out, e);
+  return values_at(f, n, NULL, q, sd, INFINITY, out, e);
+}
+
+int gr_offset_values_band(const gr_field *f_, size_t n, const double *q, const double *sd, double band, double *out,
+                          gr_err *e) {
+  const offset *f = gr_field_callback_data(f_, offset_eval);
+  if (!f) return gr_fail(e, GR_EARG, "offset values need an offset field");
+  return values_at(f, n, NULL, q, sd, band, out, e);
 }
 
 double gr_offset_herr(const gr_field *f_) {
@@ -660,7 +668,7 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
       sd[i] = ph[i] > 0 ? d : -d;
       if (grad) dist_grad(f, p, qi, sd[i], grad + 3 * (s + i));
     }
-    if ((rc = values_at(f, m, pb, q, sd, out + s, e))) return rc;
+    if ((rc = values_at(f, m, pb, q, sd, INFINITY, out + s, e))) return rc;
   }
   return GR_OK;
 }
@@ -736,7 +744,7 @@ int gr_offset_eval_model(const gr_field *f_, size_t n, const double *x, const do
       memcpy(pb + 3 * k, P, sizeof P);
       id[k++] = i;
     }
-    int rc = values_at(f, k, pb, q, sd, vk, e);
+    int rc = values_at(f, k, pb, q, sd, INFINITY, vk, e);
     if (rc) return rc;
     for (size_t i = 0; i < k; i++) {
       size_t o = s + id[i];
