@@ -42,6 +42,7 @@ typedef struct offset {
   gr_dtable *dens;    /* density -> T table, or NULL */
   double shift[3];    /* H = the shared mesh translated by this, mm */
   double lip;         /* Lipschitz bound of phi */
+  gr_field_step hstep; /* exact_newton's Hessian step (1e-6 L), its phases made once */
   int kind, side, mode;
   double tnear;       /* typical T, centre of the refinement band */
   double refine_band; /* refine q where | d - tnear | < this */
@@ -259,7 +260,7 @@ static int solve4(double A[4][4], double b[4]) {
  * near the answer (a neighbour's closest point); returns 0 (q unchanged)
  * when it does not converge, so the caller can fall back. */
 static int exact_newton(const offset *f, const double p[3], double q[3]) {
-  double x[3] = {q[0], q[1], q[2]}, lam = 0, step = 1e-6 * f->L, prev = INFINITY;
+  double x[3] = {q[0], q[1], q[2]}, lam = 0, prev = INFINITY;
   gr_err e;
   double gs[3][3], dp[3] = {0, 0, 0};
   gr_field_at at;
@@ -267,7 +268,7 @@ static int exact_newton(const offset *f, const double p[3], double q[3]) {
     double v, g[3];
     /* the Hessian once: the start is near, so it barely changes; the
      * steps after it move the start's sines and cosines */
-    if (it == 0 ? gr_field_hess_fd_at(f->phi, x, step, &v, g, gs, &at, &e) : gr_field_move_grad(f->phi, &at, dp, &v, g, &e))
+    if (it == 0 ? gr_field_hess_fd_step(f->phi, x, &f->hstep, &v, g, gs, &at, &e) : gr_field_move_grad(f->phi, &at, dp, &v, g, &e))
       return 0;
     double g2 = gr_dot3(g, g);
     if (!(g2 > 1e-300)) return 0;
@@ -1015,6 +1016,7 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   if (!f) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
   f->phi = gr_field_ref(o->surface);
   f->L = L;
+  gr_field_step_init(f->phi, 1e-6 * L, &f->hstep);
   memcpy(f->Lv, o->cell, sizeof f->Lv);
   memcpy(f->o, o->origin, sizeof f->o);
   f->kind = o->kind;
