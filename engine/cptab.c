@@ -126,12 +126,6 @@ static int node_hints(const near_ud *u, double x, double y, double *hi) {
   return nh;
 }
 
-/* The closest point of (x, y) predicted from the nearest node's and its eight
- * neighbours' closest points: the foot map's second-order Taylor expansion
- * there, its derivatives by central differences (error of order h^3 times
- * the map's third derivative: tens of nanometres at h = 0.025 mm). NaN when a
- * node of the 3 x 3 stencil has none or when the stencil's closest points
- * jump (they lie on more than one patch of H). */
 /* The derivatives of node (i, j) into c (dx, dy, dxx, dyy, dxy, each 3);
  * 0 when it has no model. */
 static int node_model(const near_ud *u, int i, int j, double c[15]) {
@@ -155,6 +149,13 @@ static int node_model(const near_ud *u, int i, int j, double c[15]) {
   return 1;
 }
 
+/* The closest point of (x, y) predicted from the nearest node's and its eight
+ * neighbours' closest points: the foot map's second-order Taylor expansion
+ * there, its derivatives by central differences (error of order h^3 times
+ * the map's third derivative: tens of nanometres at h = 0.025 mm). NaN when a
+ * node of the 3 x 3 stencil has none or when the stencil's closest points
+ * jump (they lie on more than one patch of H). The stencil comes from
+ * node_model, once per node (u->pst, u->pco); the sum is the same. */
 static void node_predict(const near_ud *u, double x, double y, double pr[3]) {
   double fx = (x - u->lo[0]) / u->h, fy = (y - u->lo[1]) / u->h;
   pr[0] = pr[1] = pr[2] = NAN;
@@ -333,8 +334,9 @@ static int strict_node(const gr_cptab *t, int q, size_t k, double qk[3], double 
 }
 
 /* The field's values at the slice grid's nodes (nx a row; window node n is
- * table node kmap[n], its closest point shifted by off[n]) from the table's
- * closest points Q and signed distances sd (gr_offset_values), nodes whose
+ * table node k of node_shift, its closest point shifted by off there) from
+ * the window's closest points Q and signed distances sd
+ * (gr_offset_values_band: the far nodes need no copy of Q), nodes whose
  * value is within twice H's error bound of zero through the strict check
  * (strict_node). T is evaluated only at nodes within tmax + FAR_CELLS grid
  * cells + 2 herr of H (the table's sd may be up to 2 herr too long before the
