@@ -78,6 +78,11 @@ typedef struct near_ud {
   double z, lo[2], h;
   int nx, ny;
   const double *q; /* 3 per window node */
+  /* node_predict's stencil per window node, made when a point first needs
+   * it (refined points crowd round the contours: most nodes serve several):
+   * pst 0 not made, 1 made (pco: 15 per node), 2 no model there */
+  unsigned char *pst;
+  double *pco;
 } near_ud;
 
 
@@ -121,33 +126,51 @@ static int node_hints(const near_ud *u, double x, double y, double *hi) {
   return nh;
 }
 
+/* The derivatives of node (i, j) into c (dx, dy, dxx, dyy, dxy, each 3);
+ * 0 when it has no model. */
+static int node_model(const near_ud *u, int i, int j, double c[15]) {
+  const double *q[3][3]; /* q[a + 1][b + 1]: node (i + a, j + b) */
+  for (int a = -1; a <= 1; a++)
+    for (int b = -1; b <= 1; b++) {
+      q[a + 1][b + 1] = u->q + 3 * ((size_t)(i + a) + (size_t)u->nx * (size_t)(j + b));
+      if (isnan(q[a + 1][b + 1][0])) return 0;
+    }
+  for (int k = 0; k < 3; k++) {
+    double q0 = q[1][1][k], dx = 0.5 * (q[2][1][k] - q[0][1][k]), dy = 0.5 * (q[1][2][k] - q[1][0][k]);
+    double dxx = q[2][1][k] - 2 * q0 + q[0][1][k], dyy = q[1][2][k] - 2 * q0 + q[1][0][k];
+    double dxy = 0.25 * (q[2][2][k] - q[2][0][k] - q[0][2][k] + q[0][0][k]);
+    if (!(fabs(dxx) < u->h && fabs(dyy) < u->h && fabs(dxy) < u->h)) return 0;
+    c[k] = dx;
+    c[3 + k] = dy;
+    c[6 + k] = dxx;
+    c[9 + k] = dyy;
+    c[12 + k] = dxy;
+  }
+  return 1;
+}
+
 /* The closest point of (x, y) predicted from the nearest node's and its eight
  * neighbours' closest points: the foot map's second-order Taylor expansion
  * there, its derivatives by central differences (error of order h^3 times
  * the map's third derivative: tens of nanometres at h = 0.025 mm). NaN when a
  * node of the 3 x 3 stencil has none or when the stencil's closest points
- * jump (they lie on more than one patch of H). */
+ * jump (they lie on more than one patch of H). The stencil comes from
+ * node_model, once per node (u->pst, u->pco); the sum is the same. */
 static void node_predict(const near_ud *u, double x, double y, double pr[3]) {
   double fx = (x - u->lo[0]) / u->h, fy = (y - u->lo[1]) / u->h;
   pr[0] = pr[1] = pr[2] = NAN;
   /* the nearest node (i, j) must have all eight neighbours */
   if (!(fx >= 0.5 && fy >= 0.5 && fx < u->nx - 1.5 && fy < u->ny - 1.5)) return;
   int i = (int)(fx + 0.5), j = (int)(fy + 0.5);
-  const double *q[3][3]; /* q[a + 1][b + 1]: node (i + a, j + b) */
-  for (int a = -1; a <= 1; a++)
-    for (int b = -1; b <= 1; b++) {
-      q[a + 1][b + 1] = u->q + 3 * ((size_t)(i + a) + (size_t)u->nx * (size_t)(j + b));
-      if (isnan(q[a + 1][b + 1][0])) return;
-    }
-  double s = fx - i, t = fy - j, r[3];
-  for (int c = 0; c < 3; c++) {
-    double q0 = q[1][1][c], dx = 0.5 * (q[2][1][c] - q[0][1][c]), dy = 0.5 * (q[1][2][c] - q[1][0][c]);
-    double dxx = q[2][1][c] - 2 * q0 + q[0][1][c], dyy = q[1][2][c] - 2 * q0 + q[1][0][c];
-    double dxy = 0.25 * (q[2][2][c] - q[2][0][c] - q[0][2][c] + q[0][0][c]);
-    if (!(fabs(dxx) < u->h && fabs(dyy) < u->h && fabs(dxy) < u->h)) return;
-    r[c] = q0 + s * dx + t * dy + 0.5 * s * s * dxx + s * t * dxy + 0.5 * t * t * dyy;
+  size_t n = (size_t)i + (size_t)u->nx * (size_t)j;
+  double *c = u->pco + 15 * n;
+  if (!u->pst[n]) u->pst[n] = node_model(u, i, j, c) ? 1 : 2;
+  if (u->pst[n] != 1) return;
+  double s = fx - i, t = fy - j;
+  for (int k = 0; k < 3; k++) {
+    double q0 = u->q[3 * n + k], dx = c[k], dy = c[3 + k], dxx = c[6 + k], dyy = c[9 + k], dxy = c[12 + k];
+    pr[k] = q0 + s * dx + t * dy + 0.5 * s * s * dxx + s * t * dxy + 0.5 * t * t * dyy;
   }
-  memcpy(pr, r, sizeof r);
 }
 
 /* Value (and in-plane gradient when gx != NULL) at n points: from the
@@ -311,8 +334,9 @@ static int strict_node(const gr_cptab *t, int q, size_t k, double qk[3], double 
 }
 
 /* The field's values at the slice grid's nodes (nx a row; window node n is
- * table node kmap[n], its closest point shifted by off[n]) from the table's
- * closest points Q and signed distances sd (gr_offset_values), nodes whose
+ * table node k of node_shift, its closest point shifted by off there) from
+ * the window's closest points Q and signed distances sd
+ * (gr_offset_values_band: the far nodes need no copy of Q), nodes whose
  * value is within twice H's error bound of zero through the strict check
  * (strict_node). T is evaluated only at nodes within tmax + FAR_CELLS grid
  * cells + 2 herr of H (the table's sd may be up to 2 herr too long before the
@@ -324,16 +348,21 @@ static int strict_node(const gr_cptab *t, int q, size_t k, double qk[3], double 
  * T = tmax). Not for a trimmed field (the domain's cut takes the lattice
  * value's size). */
 #define FAR_CELLS 6
-static int node_values(const gr_cptab *t, int q, const gr_field *f, int cut, double h, size_t nn, const size_t *kmap,
-                       const double *off, double *Q, double *sd, double *v, gr_err *e) {
+/* Window node n's closest point shifted from the table's (node k of its
+ * period): by sh plus the whole periods before it. */
+static void node_shift(const gr_cptab *t, int nx, const double sh[3], size_t n, size_t *k, double off[3]) {
+  int a = (int)(n % (size_t)nx), b = (int)(n / (size_t)nx);
+  *k = a % t->P[0] + (size_t)t->P[0] * (b % t->P[1]);
+  off[0] = sh[0] + (a / t->P[0]) * t->cell[0];
+  off[1] = sh[1] + (b / t->P[1]) * t->cell[1];
+  off[2] = sh[2];
+}
+
+static int node_values(const gr_cptab *t, int q, const gr_field *f, int cut, double h, int nx, size_t nn,
+                       const double sh[3], double *Q, double *sd, double *v, gr_err *e) {
   double tmax = gr_offset_max_thickness(f), herr = gr_offset_herr(f);
-  double *Qc = malloc(3 * nn * sizeof *Qc);
-  if (!Qc) return gr_fail(e, GR_EMEM, "out of memory");
-  for (size_t n = 0; n < nn; n++) {
-    int far = !cut && tmax >= 0 && fabs(sd[n]) > tmax + FAR_CELLS * h + 2 * herr;
-    for (int a = 0; a < 3; a++) Qc[3 * n + a] = far ? NAN : Q[3 * n + a];
-  }
-  int rc = gr_offset_values(f, nn, Qc, sd, v, e);
+  double band = !cut && tmax >= 0 ? tmax + FAR_CELLS * h + 2 * herr : INFINITY;
+  int rc = gr_offset_values_band(f, nn, Q, sd, band, v, e);
   /* the table's closest points may be up to 2 herr too far (its tolerance,
    * H's error): where that could decide the sign, the strict check. (A
    * graded T can differ between the two patches and flip the sign of larger
@@ -341,16 +370,38 @@ static int node_values(const gr_cptab *t, int q, const gr_field *f, int cut, dou
    * template time on eq. (8) sheets and changed no layer of the iwp sheet's
    * measurement, doc/quality.md: not done.) */
   for (size_t n = 0; n < nn && !rc; n++) {
-    if (isnan(Qc[3 * n]) || !(fabs(v[n]) < 2 * herr)) continue;
-    double qk[3], sdk;
-    if ((rc = strict_node(t, q, kmap[n], qk, &sdk, e))) break;
+    if (!(fabs(v[n]) < 2 * herr) || isnan(Q[3 * n]) || fabs(sd[n]) > band) continue;
+    double qk[3], sdk, off[3];
+    size_t k;
+    node_shift(t, nx, sh, n, &k, off);
+    if ((rc = strict_node(t, q, k, qk, &sdk, e))) break;
     if (sdk == sd[n]) continue;
-    for (int a = 0; a < 3; a++) Q[3 * n + a] = qk[a] + off[3 * n + a];
+    for (int a = 0; a < 3; a++) Q[3 * n + a] = qk[a] + off[a];
     sd[n] = sdk;
     rc = gr_offset_values(f, 1, Q + 3 * n, sd + n, v + n, e);
   }
-  free(Qc);
   return rc;
+}
+
+/* The table's closest points and signed distances of the window's nodes
+ * (nx a row; sh: the member's voxel corner less the reference's), shifted by
+ * whole periods (node_shift, without its divisions). */
+static void window_nodes(const gr_cptab *t, int q, int nx, int ny, const double sh[3], double *Q, double *sd) {
+  size_t np = (size_t)t->P[0] * t->P[1];
+  const double *tq = t->q + 3 * np * q, *tsd = t->sd + np * q;
+  for (int b = 0; b < ny; b++) {
+    size_t kb = (size_t)t->P[0] * (b % t->P[1]);
+    double oy = sh[1] + (b / t->P[1]) * t->cell[1];
+    for (int a = 0, ka = 0, ia = 0; a < nx; a++) {
+      size_t n = a + (size_t)nx * b, k = ka + kb;
+      double ox = sh[0] + ia * t->cell[0];
+      Q[3 * n] = tq[3 * k] + ox;
+      Q[3 * n + 1] = tq[3 * k + 1] + oy;
+      Q[3 * n + 2] = tq[3 * k + 2] + sh[2];
+      sd[n] = tsd[k];
+      if (++ka == t->P[0]) ka = 0, ia++;
+    }
+  }
 }
 
 /* Section of class c's layer at z (template layer q) through the table; a
@@ -360,44 +411,33 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
                    double z, const gr_slice_opts *so, gr_rings *out, gr_err *e) {
   int nx, ny;
   double hx, hy, skin = 0;
-  const int *P = t->P;
   const gr_field *d = NULL;
   int cut = gr_domain_trim_parts(f, &f, &d, &skin);
   gr_slice_grid_size(so, &nx, &ny, &hx, &hy);
-  size_t nn = (size_t)nx * ny, np = (size_t)P[0] * P[1];
-  double *Q = malloc((cut ? 9 : 8) * nn * sizeof *Q);
-  size_t *kmap = malloc(nn * sizeof *kmap);
-  if (!Q || !kmap) {
+  size_t nn = (size_t)nx * ny;
+  double *Q = malloc((cut ? 21 : 20) * nn * sizeof *Q);
+  unsigned char *pst = calloc(nn, 1);
+  if (!Q || !pst) {
     free(Q);
-    free(kmap);
+    free(pst);
     return gr_fail(e, GR_EMEM, "out of memory");
   }
-  double *sd = Q + 3 * nn, *v = Q + 4 * nn, *off = Q + 5 * nn;
+  double *sd = Q + 3 * nn, *v = Q + 4 * nn, *pco = Q + 5 * nn;
   double sh[3] = {o[0] - t->oref[0], o[1] - t->oref[1], o[2] - t->oref[2]};
-  const double *tq = t->q + 3 * np * q, *tsd = t->sd + np * q;
-  for (int b = 0; b < ny; b++)
-    for (int a = 0; a < nx; a++) {
-      size_t n = a + (size_t)nx * b, k = a % P[0] + (size_t)P[0] * (b % P[1]);
-      off[3 * n] = sh[0] + (a / P[0]) * t->cell[0];
-      off[3 * n + 1] = sh[1] + (b / P[1]) * t->cell[1];
-      off[3 * n + 2] = sh[2];
-      for (int c = 0; c < 3; c++) Q[3 * n + c] = tq[3 * k + c] + off[3 * n + c];
-      sd[n] = tsd[k];
-      kmap[n] = k;
-    }
-  int rc = node_values(t, q, f, cut, fmax(hx, hy), nn, kmap, off, Q, sd, v, e);
-  free(kmap);
-  double *dv = Q + 8 * nn;
+  window_nodes(t, q, nx, ny, sh, Q, sd);
+  int rc = node_values(t, q, f, cut, fmax(hx, hy), nx, nn, sh, Q, sd, v, e);
+  double *dv = Q + 20 * nn;
   unsigned char *far = cut ? malloc(nn) : NULL;
   if (!rc && cut && !far) rc = gr_fail(e, GR_EMEM, "out of memory");
   if (!rc && cut) {
     rc = gr_domain_grid(d, skin, z, so->lo[0], so->lo[1], hx, hy, nx, ny, dv, far, e);
     if (!rc) gr_domain_trim_apply(nn, v, dv, skin, NULL);
   }
-  cut_ud u = {{f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q}, d, skin, hy, dv, far, sd, gr_offset_herr(f)};
+  cut_ud u = {{f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q, pst, pco}, d, skin, hy, dv, far, sd, gr_offset_herr(f)};
   if (!rc)
     rc = cut ? gr_slice_grid(v, so, cut_fn, NULL, &u, out, e) : gr_slice_grid(v, so, near_fn, near_eval, &u.n, out, e);
   free(far);
+  free(pst);
   free(Q);
   return rc;
 }

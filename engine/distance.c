@@ -42,6 +42,7 @@ typedef struct offset {
   gr_dtable *dens;    /* density -> T table, or NULL */
   double shift[3];    /* H = the shared mesh translated by this, mm */
   double lip;         /* Lipschitz bound of phi */
+  gr_field_step hstep; /* exact_newton's Hessian step (1e-6 L), its phases made once */
   int kind, side, mode;
   double tnear;       /* typical T, centre of the refinement band */
   double refine_band; /* refine q where | d - tnear | < this */
@@ -259,7 +260,7 @@ static int solve4(double A[4][4], double b[4]) {
  * near the answer (a neighbour's closest point); returns 0 (q unchanged)
  * when it does not converge, so the caller can fall back. */
 static int exact_newton(const offset *f, const double p[3], double q[3]) {
-  double x[3] = {q[0], q[1], q[2]}, lam = 0, step = 1e-6 * f->L, prev = INFINITY;
+  double x[3] = {q[0], q[1], q[2]}, lam = 0, prev = INFINITY;
   gr_err e;
   double gs[3][3], dp[3] = {0, 0, 0};
   gr_field_at at;
@@ -267,7 +268,7 @@ static int exact_newton(const offset *f, const double p[3], double q[3]) {
     double v, g[3];
     /* the Hessian once: the start is near, so it barely changes; the
      * steps after it move the start's sines and cosines */
-    if (it == 0 ? gr_field_hess_fd_at(f->phi, x, step, &v, g, gs, &at, &e) : gr_field_move_grad(f->phi, &at, dp, &v, g, &e))
+    if (it == 0 ? gr_field_hess_fd_step(f->phi, x, &f->hstep, &v, g, gs, &at, &e) : gr_field_move_grad(f->phi, &at, dp, &v, g, &e))
       return 0;
     double g2 = gr_dot3(g, g);
     if (!(g2 > 1e-300)) return 0;
@@ -549,9 +550,10 @@ int gr_offset_closest(const gr_field *f_, size_t n, const double *x, const doubl
 }
 
 /* Values from closest points q and signed distances sd; p (NULL: q) the
- * points themselves, for the owning voxel. */
-static int values_at(const offset *f, size_t n, const double *p, const double *q, const double *sd, double *out,
-                     gr_err *e) {
+ * points themselves, for the owning voxel. Points farther than band from H
+ * (|sd| > band) are taken as far, as those without a closest point are. */
+static int values_at(const offset *f, size_t n, const double *p, const double *q, const double *sd, double band,
+                     double *out, gr_err *e) {
   enum { B = 256 };
   double qx[B], qy[B], qz[B], tt[B], ti[B], px[B], py[B], pz[B];
   const double *pk[3] = {px, py, pz};
@@ -560,7 +562,7 @@ static int values_at(const offset *f, size_t n, const double *p, const double *q
     size_t m = n - s < B ? n - s : B, k = 0;
     for (size_t i = 0; i < m; i++) {
       const double *qi = q + 3 * (s + i);
-      if (isnan(qi[0])) { /* far from H: a bound with the right sign */
+      if (isnan(qi[0]) || fabs(sd[s + i]) > band) { /* far from H: a bound with the right sign */
         out[s + i] = offset_value(f, sd[s + i], f->tmax, f->tmax);
         continue;
       }
@@ -581,7 +583,14 @@ static int values_at(const offset *f, size_t n, const double *p, const double *q
 int gr_offset_values(const gr_field *f_, size_t n, double *q, double *sd, double *out, gr_err *e) {
   const offset *f = gr_field_callback_data(f_, offset_eval);
   if (!f) return gr_fail(e, GR_EARG, "offset values need an offset field");
-  return values_at(f, n, NULL, q, sd, out, e);
+  return values_at(f, n, NULL, q, sd, INFINITY, out, e);
+}
+
+int gr_offset_values_band(const gr_field *f_, size_t n, const double *q, const double *sd, double band, double *out,
+                          gr_err *e) {
+  const offset *f = gr_field_callback_data(f_, offset_eval);
+  if (!f) return gr_fail(e, GR_EARG, "offset values need an offset field");
+  return values_at(f, n, NULL, q, sd, band, out, e);
 }
 
 double gr_offset_herr(const gr_field *f_) {
@@ -660,7 +669,7 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
       sd[i] = ph[i] > 0 ? d : -d;
       if (grad) dist_grad(f, p, qi, sd[i], grad + 3 * (s + i));
     }
-    if ((rc = values_at(f, m, pb, q, sd, out + s, e))) return rc;
+    if ((rc = values_at(f, m, pb, q, sd, INFINITY, out + s, e))) return rc;
   }
   return GR_OK;
 }
@@ -736,7 +745,7 @@ int gr_offset_eval_model(const gr_field *f_, size_t n, const double *x, const do
       memcpy(pb + 3 * k, P, sizeof P);
       id[k++] = i;
     }
-    int rc = values_at(f, k, pb, q, sd, vk, e);
+    int rc = values_at(f, k, pb, q, sd, INFINITY, vk, e);
     if (rc) return rc;
     for (size_t i = 0; i < k; i++) {
       size_t o = s + id[i];
@@ -1007,6 +1016,7 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   if (!f) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
   f->phi = gr_field_ref(o->surface);
   f->L = L;
+  gr_field_step_init(f->phi, 1e-6 * L, &f->hstep);
   memcpy(f->Lv, o->cell, sizeof f->Lv);
   memcpy(f->o, o->origin, sizeof f->o);
   f->kind = o->kind;

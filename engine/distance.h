@@ -82,6 +82,11 @@ int gr_offset_closest(const gr_field *f, size_t n, const double *x, const double
  * (gr_offset_herr) too long: where |g| is within that, the caller checks q
  * with gr_offset_strict and evaluates again. */
 int gr_offset_values(const gr_field *f, size_t n, double *q, double *sd, double *out, gr_err *e);
+/* The same, points with |sd| > band (mm) taken as far (a bound of the right
+ * sign, as for q = NaN) without evaluating T there: the caller's nodes whose
+ * value is read only for its sign, without copying q. */
+int gr_offset_values_band(const gr_field *f, size_t n, const double *q, const double *sd, double band, double *out,
+                          gr_err *e);
 /* H's error bound of offset field f (half a mesh spacing, mm), or -1 when
  * f is not one. */
 double gr_offset_herr(const gr_field *f);

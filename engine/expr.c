@@ -37,10 +37,16 @@ static const func_def FUNCS[] = {
 };
 #define NFUNCS ((int)(sizeof FUNCS / sizeof FUNCS[0]))
 
+/* A binary operation's right operand: the stack's top, or fused into the
+ * operation (a constant or a variable pushed just before it: one pass over
+ * the chunk instead of two, the same arithmetic). */
+enum { R_STACK, R_CONST, R_VAR };
+
 typedef struct instr {
   int op;   /* OP_* */
-  int var;  /* variable index for OP_VAR */
-  double c; /* value for OP_CONST */
+  int var;  /* variable index for OP_VAR (and rk R_VAR) */
+  double c; /* value for OP_CONST (and rk R_CONST) */
+  int rk;   /* binary operations: R_* */
 } instr;
 
 struct gr_expr {
@@ -136,12 +142,20 @@ static int emit(parser *p, int op, int var, double c) {
     p->depth--;
     return 0;
   }
+  if (op >= OP_ADD && op != OP_NEG && !is_unary(op) && p->ncode >= 1 &&
+      (p->code[p->ncode - 1].op == OP_CONST || p->code[p->ncode - 1].op == OP_VAR)) {
+    instr *r = &p->code[p->ncode - 1]; /* the whole right operand */
+    r->rk = r->op == OP_CONST ? R_CONST : R_VAR;
+    r->op = op;
+    p->depth--;
+    return 0;
+  }
   if (gr_grow(&p->code, &p->cap, p->ncode + 1, sizeof *p->code) != GR_OK) {
     if (!p->failed) gr_fail(p->e, GR_EMEM, "expression '%s': out of memory", p->src);
     p->failed = 1;
     return -1;
   }
-  p->code[p->ncode++] = (instr){op, var, c};
+  p->code[p->ncode++] = (instr){op, var, c, R_STACK};
   if (op == OP_CONST || op == OP_VAR) {
     if (++p->depth > p->maxdepth) p->maxdepth = p->depth;
   } else if (!is_unary(op)) {
@@ -391,7 +405,7 @@ const char *gr_expr_source(const gr_expr *x) { return x ? x->src : ""; }
 
 int gr_expr_uses(const gr_expr *x, int i) {
   for (size_t k = 0; k < x->ncode; k++)
-    if (x->code[k].op == OP_VAR && x->code[k].var == i) return 1;
+    if ((x->code[k].op == OP_VAR || x->code[k].rk == R_VAR) && x->code[k].var == i) return 1;
   return 0;
 }
 
@@ -417,19 +431,40 @@ static void run_chunk(const gr_expr *x, size_t off, size_t m,
       memcpy(t, vars[in->var] + off, m * sizeof *t);
       break;
     }
-#define BIN(OP, EXPR)                                        \
-    case OP:                                                 \
-      for (size_t i = 0; i < m; i++) b[i] = (EXPR);          \
-      sp--;                                                  \
+/* b op a (a: the top, or the fused right operand r with the top as b) */
+#define BIN(OP, F)                                                       \
+    case OP:                                                             \
+      if (in->rk == R_CONST) {                                           \
+        double r = in->c;                                                \
+        for (size_t i = 0; i < m; i++) a[i] = F(a[i], r);                \
+      } else if (in->rk == R_VAR) {                                      \
+        const double *r = vars[in->var] + off;                           \
+        for (size_t i = 0; i < m; i++) a[i] = F(a[i], r[i]);             \
+      } else {                                                           \
+        for (size_t i = 0; i < m; i++) b[i] = F(b[i], a[i]);             \
+        sp--;                                                            \
+      }                                                                  \
       break;
-    BIN(OP_ADD, b[i] + a[i])
-    BIN(OP_SUB, b[i] - a[i])
-    BIN(OP_MUL, b[i] * a[i])
-    BIN(OP_DIV, b[i] / a[i])
-    BIN(OP_POW, pow(b[i], a[i]))
-    BIN(OP_MIN, b[i] < a[i] ? b[i] : a[i])
-    BIN(OP_MAX, b[i] > a[i] ? b[i] : a[i])
-    BIN(OP_ATAN2, atan2(b[i], a[i]))
+#define F_ADD(u, v) ((u) + (v))
+#define F_SUB(u, v) ((u) - (v))
+#define F_MUL(u, v) ((u) * (v))
+#define F_DIV(u, v) ((u) / (v))
+#define F_MIN(u, v) ((u) < (v) ? (u) : (v))
+#define F_MAX(u, v) ((u) > (v) ? (u) : (v))
+    BIN(OP_ADD, F_ADD)
+    BIN(OP_SUB, F_SUB)
+    BIN(OP_MUL, F_MUL)
+    BIN(OP_DIV, F_DIV)
+    BIN(OP_POW, pow)
+    BIN(OP_MIN, F_MIN)
+    BIN(OP_MAX, F_MAX)
+    BIN(OP_ATAN2, atan2)
+#undef F_ADD
+#undef F_SUB
+#undef F_MUL
+#undef F_DIV
+#undef F_MIN
+#undef F_MAX
 #undef BIN
 #define UN(OP, EXPR)                                         \
     case OP:                                                 \

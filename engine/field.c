@@ -683,8 +683,25 @@ int gr_field_grad_at(const gr_field *f, const double p[3], double *v, double g[3
   return GR_OK;
 }
 
+void gr_field_step_init(const gr_field *f, double h, gr_field_step *st) {
+  st->h = h;
+  for (int a = 0; a < 3; a++) {
+    st->sn[a] = 0;
+    st->cs[a] = 1;
+    if (f && f->kind == K_TPMS) small_sincos(f->w[a] * h, &st->sn[a], &st->cs[a]);
+  }
+}
+
 int gr_field_hess_fd_at(const gr_field *f, const double p[3], double h, double *v, double g[3], double hs[3][3],
                         gr_field_at *at, gr_err *e) {
+  gr_field_step st;
+  gr_field_step_init(f, h, &st);
+  return gr_field_hess_fd_step(f, p, &st, v, g, hs, at, e);
+}
+
+int gr_field_hess_fd_step(const gr_field *f, const double p[3], const gr_field_step *st, double *v, double g[3],
+                          double hs[3][3], gr_field_at *at, gr_err *e) {
+  double h = st->h;
   if (!f) return gr_fail(e, GR_EARG, "field is missing (NULL)");
   if (!(h > 0) || !isfinite(h)) return gr_fail(e, GR_EARG, "Hessian step must be > 0, got %g", h);
   int rc = gr_field_grad_at(f, p, v, g, at, e);
@@ -701,7 +718,10 @@ int gr_field_hess_fd_at(const gr_field *f, const double p[3], double h, double *
   const double *w = f->w;
   for (int a = 0; a < 3; a++) {
     double s2[3] = {at->sn[0], at->sn[1], at->sn[2]}, c2[3] = {at->cs[0], at->cs[1], at->cs[2]}, g2[3];
-    phase_add(s2, c2, a, w[a] * h);
+    /* phase_add(s2, c2, a, w[a] * h), its small_sincos made once in st */
+    double s0 = s2[a], c0 = c2[a];
+    s2[a] = s0 * st->cs[a] + c0 * st->sn[a];
+    c2[a] = c0 * st->cs[a] - s0 * st->sn[a];
     tpms_trig(f->surface, s2[0], c2[0], s2[1], c2[1], s2[2], c2[2], g2);
     for (int c = 0; c < 3; c++) hs[a][c] = (w[c] * g2[c] - g[c]) / h;
   }

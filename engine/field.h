@@ -111,6 +111,18 @@ int gr_field_grad_at(const gr_field *f, const double p[3], double *v, double g[3
 /* gr_field_hess_fd at p, remembering p in *at. */
 int gr_field_hess_fd_at(const gr_field *f, const double p[3], double h, double *v, double g[3], double hs[3][3],
                         gr_field_at *at, gr_err *e);
+/* A difference step h with, for a TPMS, the sines and cosines of its phase
+ * per axis (the angle-addition factors gr_field_hess_fd_at takes): made
+ * once for many Hessians with the same step. */
+typedef struct gr_field_step {
+  double h;
+  double sn[3], cs[3];
+} gr_field_step;
+/* The step h of f (h > 0 and finite is checked when used). */
+void gr_field_step_init(const gr_field *f, double h, gr_field_step *st);
+/* gr_field_hess_fd_at with the step st (gr_field_step_init): the same values. */
+int gr_field_hess_fd_step(const gr_field *f, const double p[3], const gr_field_step *st, double *v, double g[3],
+                          double hs[3][3], gr_field_at *at, gr_err *e);
 /* Move *at (filled by gr_field_grad_at or gr_field_hess_fd_at) by dp (mm) and give the value
  * and gradient there (as gr_field_eval_grad at at->p + dp, to rounding). */
 int gr_field_move_grad(const gr_field *f, gr_field_at *at, const double dp[3], double *v, double g[3], gr_err *e);
