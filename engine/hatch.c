@@ -96,7 +96,9 @@ static int cmp_double(const void *a, const void *b) {
 /* First line index k with k*d >= v (same expression k*d everywhere, so that
  * the line family is bit-identical across calls). */
 static long line_at_or_above(double v, double d) {
-  long k = (long)ceil(v / d);
+  /* any guess within a line or two gives the same k (the loops below
+   * settle it: k*d grows with k); truncation is cheaper than ceil */
+  long k = (long)(v / d);
   while ((double)k * d < v) k++;
   while ((double)(k - 1) * d >= v) k--;
   return k;
@@ -145,10 +147,15 @@ static int scan_build(scan *sc, const gr_rings *r, double angle, double d,
   size_t nl = (size_t)(sc->kmax - sc->kmin + 1);
   size_t *cnt = calloc(nl + 1, sizeof *cnt);
   if (!cnt) return gr_fail(e, GR_EMEM, "hatch: out of memory (%zu lines)", nl);
+  /* each edge's first line, found once for both passes (most edges of a
+   * finely chorded region cross no line at all) */
+  long *k0 = malloc(sc->ne * sizeof *k0);
+  if (!k0) { free(cnt); return gr_fail(e, GR_EMEM, "hatch: out of memory (%zu edges)", sc->ne); }
   size_t total = 0;
   for (size_t i = 0; i < sc->ne; i++) {
     const edge *E = &sc->ed[i];
-    for (long k = line_at_or_above(E->va, d); (double)k * d < E->vb; k++) {
+    k0[i] = line_at_or_above(E->va, d);
+    for (long k = k0[i]; (double)k * d < E->vb; k++) {
       cnt[k - sc->kmin + 1]++;
       total++;
     }
@@ -159,13 +166,13 @@ static int scan_build(scan *sc, const gr_rings *r, double angle, double d,
   sc->sg = malloc((total / 2 + 1) * sizeof *sc->sg);
   sc->lstart = malloc((nl + 1) * sizeof *sc->lstart);
   if (!cu || !fill || !sc->sg || !sc->lstart) {
-    free(cnt); free(cu); free(fill);
+    free(cnt); free(cu); free(fill); free(k0);
     return gr_fail(e, GR_EMEM, "hatch: out of memory (%zu crossings)", total);
   }
   memcpy(fill, cnt, nl * sizeof *fill);
   for (size_t i = 0; i < sc->ne; i++) {
     const edge *E = &sc->ed[i];
-    for (long k = line_at_or_above(E->va, d); (double)k * d < E->vb; k++) {
+    for (long k = k0[i]; (double)k * d < E->vb; k++) {
       double v = (double)k * d;
       cu[fill[k - sc->kmin]++] = E->ua + (v - E->va) * (E->ub - E->ua) / (E->vb - E->va);
     }
@@ -178,7 +185,7 @@ static int scan_build(scan *sc, const gr_rings *r, double angle, double d,
       if (cu[j + 1] > cu[j]) sc->sg[sc->ns++] = (seg){sc->kmin + (long)l, cu[j], cu[j + 1]};
   }
   sc->lstart[nl] = sc->ns;
-  free(cu); free(fill); free(cnt);
+  free(cu); free(fill); free(cnt); free(k0);
   if (!want_bands) return GR_OK;
   /* bands: band k holds the edges whose v range meets [k d, (k+1) d] */
   size_t *bc = calloc(nl + 1, sizeof *bc);
