@@ -113,8 +113,10 @@ static int fmt_fixed4(char *o, double v) {
 
 /* v in units as a short-form coordinate (0..65535), or -1 when it does not fit. */
 static long short_of(double v) {
-  double r = floor(v + 0.5);
-  return r >= 0 && r <= 65535 ? (long)r : -1;
+  /* floor(t) lies in 0..65535 exactly when t does in [0, 65536), and
+   * there truncation is floor (NaN fails both tests) */
+  double t = v + 0.5;
+  return t >= 0 && t < 65536 ? (long)t : -1;
 }
 
 /* Block bk (points p, CLI id) as a short command 129/131 with uint16
@@ -126,14 +128,20 @@ static int short_block(gr_cli_writer *w, const gr_block *bk, const double *p, in
   size_t cnt = seg ? bk->n / 2 : bk->n, npts = seg ? 2 * cnt : cnt, hd = seg ? 6 : 8;
   *done = 0;
   if (id < 0 || id > 65535 || cnt > 65535) return GR_OK;
-  for (size_t q = 0; q < 2 * bk->n; q++) if (short_of(p[q] / u) < 0) return GR_OK;
+  /* convert straight into the reserved room; a coordinate that does not
+   * fit abandons it (w->o.n not advanced: nothing written) */
   if (reserve(w, hd + 4 * npts, e)) return e->code;
   unsigned char *o = (unsigned char *)w->o.buf + w->o.n;
+  for (size_t q = 0; q < 2 * npts; q++) {
+    long c = short_of(p[q] / u);
+    if (c < 0) return GR_OK;
+    put_u16(o + hd + 2 * q, (unsigned)c);
+  }
+  for (size_t q = 2 * npts; q < 2 * bk->n; q++) if (short_of(p[q] / u) < 0) return GR_OK;
   put_u16(o, seg ? 131 : 129);
   put_u16(o + 2, (unsigned)id);
   if (!seg) put_u16(o + 4, (unsigned)(bk->shape == GR_OPEN ? 2 : bk->dir));
   put_u16(o + hd - 2, (unsigned)cnt);
-  for (size_t q = 0; q < 2 * npts; q++) put_u16(o + hd + 2 * q, (unsigned)short_of(p[q] / u));
   w->o.n += hd + 4 * npts;
   w->shorts++;
   *done = 1;
