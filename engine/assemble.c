@@ -213,7 +213,10 @@ static int triple_cmp(const void *a, const void *b) {
  * scanning: returns 1 and counts it in l (short_loops, short_length). */
 static int short_loop(const double *p, size_t n, double track, gr_layer *l) {
   double len = 0;
-  for (size_t k = 0; k + 1 < n; k++) len += hypot(p[2 * k + 2] - p[2 * k], p[2 * k + 3] - p[2 * k + 1]);
+  for (size_t k = 0; k + 1 < n; k++) { /* the partial sums only grow: stop once long enough */
+    len += hypot(p[2 * k + 2] - p[2 * k], p[2 * k + 3] - p[2 * k + 1]);
+    if (len >= track) return 0;
+  }
   if (len >= track) return 0;
   l->short_loops++;
   l->short_length += len;
