@@ -128,10 +128,7 @@ static int scan_edges(const gr_ms_grid *g, double lip, const double *box, double
       uint64_t m = 0;
       int span = 1;
       if (i + 8 <= r[1] + 1) {
-        uint64_t a, b, c;
-        memcpy(&a, row + i, 8);
-        memcpy(&b, row + i + 1, 8);
-        memcpy(&c, up + i, 8);
+        uint64_t a = gr_ms_word(row + i), b = gr_ms_word(row + i + 1), c = gr_ms_word(up + i);
         m = ((a | b) & NEAR_BITS) >> 1 & ~(a ^ b) & SIGN_BITS;
         m |= ((a | c) & NEAR_BITS) & ~(a ^ c) << 1 & NEAR_BITS;
         span = 8;

@@ -159,11 +159,6 @@ int gr_ms_emit_ring(gr_rings *out, double *xy, size_t n) {
  * The flags are followed by a row of zeros (the pad row's upper
  * neighbours) and 8 more bytes for words read past the end; a word read
  * past a row's end compares pad nodes (0) with pad nodes. */
-static inline uint64_t ms_word(const unsigned char *p) {
-  uint64_t w;
-  memcpy(&w, p, sizeof w);
-  return w;
-}
 
 /* The crossing edges (sign change) of the padded grid, in the order of the
  * node (I, J) they start from (J, then I) and along x before along y: edge
@@ -207,7 +202,7 @@ static int ms_crossings(const gr_ms_grid *g, const unsigned char *in, int *cross
   for (int J = 0; J < NY; J++) {
     const unsigned char *row = in + (size_t)NX * J, *up = row + NX;
     for (int I = 0; I < NX; I++) {
-      if (I + 8 <= NX && !((ms_word(row + I) ^ ms_word(row + I + 1)) | (ms_word(row + I) ^ ms_word(up + I)))) {
+      if (I + 8 <= NX && !((gr_ms_word(row + I) ^ gr_ms_word(row + I + 1)) | (gr_ms_word(row + I) ^ gr_ms_word(up + I)))) {
         I += 7;
         continue;
       }
@@ -248,8 +243,8 @@ static int ms_mixed_cells(const gr_ms_grid *g, const unsigned char *in, size_t n
     const unsigned char *row = in + (size_t)NX * J, *up = row + NX;
     for (int I = 0; I + 1 < NX; I++) {
       if (I + 9 <= NX) {
-        uint64_t w = ms_word(row + I);
-        if (!((w ^ ms_word(row + I + 1)) | (w ^ ms_word(up + I)) | (w ^ ms_word(up + I + 1)))) {
+        uint64_t w = gr_ms_word(row + I);
+        if (!((w ^ gr_ms_word(row + I + 1)) | (w ^ gr_ms_word(up + I)) | (w ^ gr_ms_word(up + I + 1)))) {
           I += 7;
           continue;
         }

@@ -9,6 +9,8 @@
 #ifndef GR_MARCH_H
 #define GR_MARCH_H
 #include "slice.h"
+#include <stdint.h>
+#include <string.h>
 
 #define MS_CHUNK 65536
 #define MS_MAX_NODES ((size_t)1 << 27)
@@ -65,5 +67,13 @@ int gr_ms_emit_ring(gr_rings *out, double *xy, size_t n);
 /* A slice window [lo, hi] with grid spacing cell and tolerance tol: errors
  * name the bad value; too many nodes is GR_EMEM. */
 int gr_ms_check_window(const double lo[2], const double hi[2], double cell, double tol, gr_err *e);
+
+/* Eight bytes of per-node flags from p as one word (any alignment), for
+ * the scans that test eight nodes at once (march.c, hidden.c). */
+static inline uint64_t gr_ms_word(const unsigned char *p) {
+  uint64_t w;
+  memcpy(&w, p, sizeof w);
+  return w;
+}
 
 #endif
