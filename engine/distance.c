@@ -580,10 +580,8 @@ static int values_at(const offset *f, size_t n, const double *p, const double *q
   return GR_OK;
 }
 
-int gr_offset_values(const gr_field *f_, size_t n, double *q, double *sd, double *out, gr_err *e) {
-  const offset *f = gr_field_callback_data(f_, offset_eval);
-  if (!f) return gr_fail(e, GR_EARG, "offset values need an offset field");
-  return values_at(f, n, NULL, q, sd, INFINITY, out, e);
+int gr_offset_values(const gr_field *f, size_t n, double *q, double *sd, double *out, gr_err *e) {
+  return gr_offset_values_band(f, n, q, sd, INFINITY, out, e);
 }
 
 int gr_offset_values_band(const gr_field *f_, size_t n, const double *q, const double *sd, double band, double *out,
