@@ -36,6 +36,7 @@ static gr_field *canon_field(gr_job *j, int c, gr_err *e) {
   if (!phi) return NULL;
   gr_offset_opts oo = offset_opts(j, s, phi, j->o.origin, 0.75 * gr_cell_min(j->o.cell));
   oo.thickness = 0;
+  oo.threads = j->o.threads; /* H meshed and checked on all threads: nothing else runs meanwhile */
   gr_field *g = gr_offset_field_new(&oo, e);
   gr_field_free(phi);
   return g;
@@ -209,12 +210,13 @@ static int store_item(void *arg_, int item, gr_err *e) {
   } else if (a->kb && !cl->trimmed && a->jb < 0) {
     gr_template *r = gr_tmpl_to_record(&j->o, cl->t, cl->sig, cl->count, e);
     if (!r) return e->code ? e->code : GR_EMEM;
-    pthread_mutex_lock(a->kbmu);
-    int rc = gr_kb_put(a->kb, r, e);
-    j->st.kb_stored += rc == GR_OK;
-    pthread_mutex_unlock(a->kbmu);
-    gr_template_free(r);
-    if (rc) return rc;
+    /* written on the writer's thread while the layers go on (stored ones
+     * are counted at gr_build_finish) */
+    if (!a->kbw && !(a->kbw = gr_kbw_start(a->kb, e))) {
+      gr_template_free(r);
+      return e->code ? e->code : GR_EMEM;
+    }
+    return gr_kbw_push(a->kbw, r, e);
   }
   return GR_OK;
 }
@@ -414,7 +416,17 @@ int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, g
   return rc;
 }
 
+int gr_build_finish(gr_build *a, gr_err *e) {
+  long stored = 0;
+  int rc = gr_kbw_finish(a->kbw, &stored, e);
+  a->kbw = NULL;
+  a->j->st.kb_stored += stored;
+  return rc;
+}
+
 void gr_build_done(gr_build *a) {
+  gr_err e;
+  gr_build_finish(a, &e); /* only if the caller has not */
   free(a->wc);
   free(a->wa);
   free(a->wb);

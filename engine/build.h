@@ -16,6 +16,7 @@
 #define GR_BUILD_H
 #include <pthread.h>
 #include "job.h"
+#include "kbwriter.h"
 
 /* A group's canonical field and closest-point table, kept across calls of
  * gr_build_classes (the part is built band by band: a group met again in a
@@ -47,12 +48,16 @@ typedef struct gr_build {
   gr_build_group **ghit;   /* per group head: its cache entry when found there, else NULL */
   gr_build_group cache[GR_BUILD_CACHE];
   long calls;              /* gr_build_classes calls so far */
+  gr_kbw *kbw;             /* the knowledge base's writer, started at the first record stored */
 } gr_build;
 
 /* Build (or load) the templates of the classes in a->items; progress via r
  * (may be NULL) under the name `stage`. */
 int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, gr_err *e);
-/* Free the work space and the cache. */
+/* Wait for the templates handed to the knowledge base's writer to be
+ * stored (counted in the job's statistics); the writer's first failure. */
+int gr_build_finish(gr_build *a, gr_err *e);
+/* Free the work space and the cache (finishing the writer if still running). */
 void gr_build_done(gr_build *a);
 
 #endif

@@ -1,5 +1,6 @@
 /* distance.c: BVH closest points and graded offset fields, see distance.h. */
 #include "distance.h"
+#include <pthread.h>
 #include <math.h>
 #include <stdlib.h>
 #include <stdio.h>
@@ -818,8 +819,8 @@ static double offset_tmax_estimate(const offset *f, const gr_offset_opts *o) {
   return tmax_est;
 }
 
-/* H: shared with o->like (lk, shifted), given (o->mesh), or meshed by
- * marching cubes over the box grown by reach; and its BVH. */
+/* H: shared with o->like (lk, shifted, with its BVH), given (o->mesh), or
+ * meshed by marching cubes over the box grown by reach. */
 static int offset_mesh(offset *f, const gr_offset_opts *o, const offset *lk, double reach, gr_err *e) {
   if (lk) {
     f->like = gr_field_ref(o->like);
@@ -837,11 +838,10 @@ static int offset_mesh(offset *f, const gr_offset_opts *o, const offset *lk, dou
       if (!(hi[a] > lo[a])) return gr_fail(e, GR_EARG, "bad option 'box' (empty along axis %d)", a);
       n[a] = (int)ceil((hi[a] - lo[a]) / o->cell[a] * o->res) + 1;
     }
-    f->own = gr_mc_field(o->surface, lo, hi, n, 1, e);
+    f->own = gr_mc_field_mt(o->surface, lo, hi, n, 1, o->threads, e);
     if (!f->own) return e->code ? e->code : GR_EMEM;
     f->h = f->own;
   }
-  if (!f->bvh && !(f->bvh = gr_bvh_new(f->h, e))) return e->code ? e->code : GR_EMEM;
   return GR_OK;
 }
 
@@ -1004,6 +1004,36 @@ static double mesh_deviation(const offset *f) {
   return fmin(1.5 * worst, f->herr);
 }
 
+/* mesh_deviation on a thread of its own */
+typedef struct dev_job {
+  const offset *f;
+  double out;
+  pthread_t th;
+} dev_job;
+static void *dev_main(void *a) {
+  dev_job *d = a;
+  d->out = mesh_deviation(d->f);
+  return NULL;
+}
+
+/* After meshing: H's BVH, the thickness over H's vertices (validation,
+ * *maxt its largest, the touch warning) and the reach. */
+static int offset_checks(offset *f, const gr_offset_opts *o, const offset *lk, double reach, double *maxt, gr_err *e) {
+  if (!f->bvh && !(f->bvh = gr_bvh_new(f->h, e))) return e->code ? e->code : GR_EMEM;
+  size_t nv = f->h->nv;
+  double *buf = malloc((4 * nv + 1) * sizeof *buf);
+  if (!buf) return gr_fail(e, GR_EMEM, "out of memory");
+  double *vx = buf, *vy = buf + nv, *vz = buf + 2 * nv, *t = buf + 3 * nv;
+  nv = offset_vertices(f, o, lk != NULL, reach, vx, vy, vz);
+  int rc = offset_check_thickness(f, o, nv, vx, vy, vz, t, maxt, e);
+  if (rc == GR_OK) {
+    offset_touch_warning(f, o, lk != NULL, nv, vx, vy, vz, t);
+    f->reach = lk ? lk->reach : (o->mode == GR_DIST_EXACT ? reach_estimate(f, o, nv, vx, vy, vz) : 0);
+  }
+  free(buf);
+  return rc;
+}
+
 gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   if (!o->surface) return gr_fail(e, GR_EARG, "bad option 'surface' (a field is needed)"), NULL;
   for (int a = 0; a < 3; a++)
@@ -1032,24 +1062,20 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   double reach = o->margin + 1.5 * offset_tmax_estimate(f, o) + 3 * L / o->res;
   const offset *lk = o->like ? gr_field_callback_data(o->like, offset_eval) : NULL;
   if (o->like && !lk) { offset_free(f); return gr_fail(e, GR_EARG, "bad option 'like' (an offset field is needed)"), NULL; }
-  if (offset_mesh(f, o, lk, reach, e)) { offset_free(f); return NULL; }
-  /* thickness over H's vertices: validation and the narrow band */
-  size_t nv = f->h->nv;
-  double *buf = malloc((4 * nv + 1) * sizeof *buf);
-  if (!buf) { offset_free(f); return gr_fail(e, GR_EMEM, "out of memory"), NULL; }
-  double *vx = buf, *vy = buf + nv, *vz = buf + 2 * nv, *t = buf + 3 * nv, maxt;
-  nv = offset_vertices(f, o, lk != NULL, reach, vx, vy, vz);
-  if (offset_check_thickness(f, o, nv, vx, vy, vz, t, &maxt, e)) {
-    free(buf);
-    offset_free(f);
-    return NULL;
-  }
-  offset_touch_warning(f, o, lk != NULL, nv, vx, vy, vz, t);
   double hmesh = fmax(o->cell[0], fmax(o->cell[1], o->cell[2])) / o->res; /* the coarsest mesh spacing */
   f->herr = 0.5 * hmesh;
-  f->reach = lk ? lk->reach : (o->mode == GR_DIST_EXACT ? reach_estimate(f, o, nv, vx, vy, vz) : 0);
-  f->mdev = lk ? lk->mdev : (o->mode == GR_DIST_EXACT ? mesh_deviation(f) : f->herr);
-  free(buf);
+  if (offset_mesh(f, o, lk, reach, e)) { offset_free(f); return NULL; }
+  /* H's deviation (it needs the mesh only) on a thread of its own beside
+   * the BVH, the thickness checks and the reach, when threads allow */
+  dev_job dj = {.f = f, .out = f->herr};
+  int dev = !lk && o->mode == GR_DIST_EXACT;
+  int dev_th = dev && o->threads > 1 && pthread_create(&dj.th, NULL, dev_main, &dj) == 0;
+  double maxt;
+  int rc = offset_checks(f, o, lk, reach, &maxt, e);
+  if (dev_th) pthread_join(dj.th, NULL);
+  else if (dev && rc == GR_OK) dj.out = mesh_deviation(f);
+  if (rc) { offset_free(f); return NULL; }
+  f->mdev = lk ? lk->mdev : dj.out;
   f->tmax = maxt;
   f->maxt = 1.2 * maxt + 2 * hmesh;
   f->tnear = 0.5 * maxt;

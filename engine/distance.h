@@ -43,6 +43,8 @@ typedef struct gr_offset_opts {
   gr_dtable *density;         /* or NULL; else the thickness values above are relative
                                  densities, turned into T by this table (a reference is
                                  taken; the inside pass gets ratio * T) */
+  int threads;                /* threads for meshing H and its checks (<= 1: the calling
+                                 thread only); the field is the same either way */
 } gr_offset_opts;
 gr_offset_opts gr_offset_defaults(void);
 

@@ -413,31 +413,56 @@ static int index_rebuild(gr_kb *kb, gr_kb_entries *es, msgs *m, gr_err *e) {
   return GR_OK;
 }
 
-int gr_kb_put(gr_kb *kb, const gr_template *t, gr_err *e) {
-  if (!kb) return gr_fail(e, GR_EARG, "knowledge base is NULL");
-  long long created = t && t->created ? t->created : (long long)time(NULL);
+/* Encode t and write its blob (atomically, fsynced); the lock is held.
+ * *created and *bytes: what its index entry records. */
+static int put_blob(gr_kb *kb, const gr_template *t, long long *created, size_t *bytes, gr_err *e) {
+  *created = t->created ? t->created : (long long)time(NULL);
   unsigned char *buf;
-  size_t n;
-  int rc = gr_kb_encode_blob(t, created, &buf, &n, e);
+  int rc = gr_kb_encode_blob(t, *created, &buf, bytes, e);
   if (rc) return rc;
   char *path = blob_path(kb, t->key);
-  if (!path) { free(buf); return gr_fail(e, GR_EMEM, "out of memory"); }
-  int fd = lock_take(kb, e);
-  if (fd < 0) { free(buf); free(path); return GR_EIO; }
-  rc = gr_kb_write_atomic(path, buf, n, e);
+  rc = path ? gr_kb_write_atomic(path, buf, *bytes, e) : gr_fail(e, GR_EMEM, "out of memory");
   free(buf);
   free(path);
-  if (rc == GR_OK) {
+  return rc;
+}
+
+int gr_kb_put(gr_kb *kb, const gr_template *t, gr_err *e) {
+  return gr_kb_put_many(kb, &t, 1, e);
+}
+
+int gr_kb_put_many(gr_kb *kb, const gr_template *const *t, size_t n, gr_err *e) {
+  if (!kb) return gr_fail(e, GR_EARG, "knowledge base is NULL");
+  if (n == 0) return GR_OK;
+  long long *created = malloc(n * sizeof *created);
+  size_t *bytes = malloc(n * sizeof *bytes);
+  if (!created || !bytes) {
+    free(created);
+    free(bytes);
+    return gr_fail(e, GR_EMEM, "out of memory");
+  }
+  int fd = lock_take(kb, e), rc = fd < 0 ? GR_EIO : GR_OK;
+  size_t done = 0; /* blobs written: the index lists these */
+  while (rc == GR_OK && done < n && (rc = put_blob(kb, t[done], &created[done], &bytes[done], e)) == GR_OK) done++;
+  if (done > 0) {
+    gr_err e2;
+    gr_err *ei = rc ? &e2 : e; /* a blob's failure is the error to report */
     gr_kb_entries es = {NULL, 0, 0};
+    int ri;
     if (gr_kb_index_read(kb, &es) != 0) {
-      rc = index_rebuild(kb, &es, NULL, e); /* includes the blob just written */
+      ri = index_rebuild(kb, &es, NULL, ei); /* includes the blobs just written */
     } else {
-      rc = gr_kb_entries_set(&es, t, created, n) ? gr_fail(e, GR_EMEM, "out of memory") : GR_OK;
-      if (rc == GR_OK) rc = gr_kb_index_write(kb, &es, e);
+      ri = GR_OK;
+      for (size_t k = 0; k < done && ri == GR_OK; k++)
+        if (gr_kb_entries_set(&es, t[k], created[k], bytes[k])) ri = gr_fail(ei, GR_EMEM, "out of memory");
+      if (ri == GR_OK) ri = gr_kb_index_write(kb, &es, ei);
     }
     gr_kb_entries_free(es.v, es.n);
+    if (rc == GR_OK) rc = ri;
   }
-  lock_drop(kb, fd);
+  if (fd >= 0) lock_drop(kb, fd);
+  free(created);
+  free(bytes);
   return rc;
 }
 

@@ -15,7 +15,7 @@
  * The format is described byte by byte in doc/kb.md.
  *
  * Thread safety: gr_kb_get may be called from several threads at once on one
- * gr_kb (reads touch no shared mutable state). gr_kb_put, gr_kb_list,
+ * gr_kb (reads touch no shared mutable state). gr_kb_put(_many), gr_kb_list,
  * gr_kb_verify and gr_kb_prune serialise themselves (a mutex in gr_kb plus
  * flock across processes). */
 #ifndef GR_KB_H
@@ -125,6 +125,10 @@ int gr_kb_get(gr_kb *kb, const char *key, gr_template **out, char *warning,
 /* Store t (replacing any blob of the same key) and update the index. If
  * t->created is 0 the current time is recorded. */
 int gr_kb_put(gr_kb *kb, const gr_template *t, gr_err *e);
+/* Store n templates under one lock: each blob as gr_kb_put does, then the
+ * index once (one index write for the batch instead of one per template).
+ * On a failure the blobs written before it are still indexed. */
+int gr_kb_put_many(gr_kb *kb, const gr_template *const *t, size_t n, gr_err *e);
 
 /* One index entry. */
 typedef struct gr_kb_entry {

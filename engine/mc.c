@@ -16,6 +16,7 @@
  * Vertices live on grid edges, one per crossed edge, kept in slab arrays of
  * edge -> vertex index, so nothing is duplicated. */
 #include "mc.h"
+#include "pool.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -383,18 +384,48 @@ typedef struct field_planes {
   const gr_field *f;
   mc_state *s;
   double *x, *y, *z;
+  double *all; /* every plane's samples (taken in parallel), or NULL: one at a time */
 } field_planes;
+
+/* Plane k's samples into out, z (np values) the scratch for its heights. */
+static int sample_plane(const field_planes *fp, int k, double *z, double *out, gr_err *e) {
+  size_t np = (size_t)fp->s->nx * fp->s->ny;
+  double zz = fp->s->z0 + k * fp->s->hz;
+  for (size_t q = 0; q < np; q++) z[q] = zz;
+  return gr_field_eval(fp->f, np, fp->x, fp->y, z, out, e);
+}
 
 static int field_plane(void *ud, int k, double *out, gr_err *e) {
   field_planes *fp = ud;
   size_t np = (size_t)fp->s->nx * fp->s->ny;
-  double zz = fp->s->z0 + k * fp->s->hz;
-  for (size_t q = 0; q < np; q++) fp->z[q] = zz;
-  return gr_field_eval(fp->f, np, fp->x, fp->y, fp->z, out, e);
+  if (fp->all) {
+    memcpy(out, fp->all + np * k, np * sizeof *out);
+    return GR_OK;
+  }
+  return sample_plane(fp, k, fp->z, out, e);
 }
+
+/* Pool item: plane k sampled into fp->all. */
+static int plane_item(void *ud, int k, gr_err *e) {
+  field_planes *fp = ud;
+  size_t np = (size_t)fp->s->nx * fp->s->ny;
+  double *z = malloc(np * sizeof *z);
+  if (!z) return gr_fail(e, GR_EMEM, "out of memory");
+  int rc = sample_plane(fp, k, z, fp->all + np * k, e);
+  free(z);
+  return rc;
+}
+
+/* Samples of all planes held at once for parallel sampling up to this size. */
+#define MC_ALL_BYTES (256.0 * 1024 * 1024)
 
 gr_mesh *gr_mc_field(const gr_field *f, const double lo[3], const double hi[3],
                      const int n[3], int refine, gr_err *e) {
+  return gr_mc_field_mt(f, lo, hi, n, refine, 1, e);
+}
+
+gr_mesh *gr_mc_field_mt(const gr_field *f, const double lo[3], const double hi[3],
+                        const int n[3], int refine, int threads, gr_err *e) {
   gr_err_clear(e);
   if (!f) { gr_fail(e, GR_EARG, "field must not be NULL"); return NULL; }
   if (check_dims(n, e)) return NULL;
@@ -416,7 +447,7 @@ gr_mesh *gr_mc_field(const gr_field *f, const double lo[3], const double hi[3],
             n[0], n[1], np * 88.0 / 1e9);
     return NULL;
   }
-  field_planes fp = {f, &s, malloc(3 * np * sizeof(double)), NULL, NULL};
+  field_planes fp = {f, &s, malloc(3 * np * sizeof(double)), NULL, NULL, NULL};
   if (!fp.x) { gr_fail(e, GR_EMEM, "out of memory for a %d x %d slab", n[0], n[1]); return NULL; }
   fp.y = fp.x + np; fp.z = fp.y + np;
   for (int j = 0; j < n[1]; j++)
@@ -429,7 +460,16 @@ gr_mesh *gr_mc_field(const gr_field *f, const double lo[3], const double hi[3],
     s.rd = malloc(s.capd * sizeof *s.rd);
     if (!s.rd) { free(fp.x); gr_fail(e, GR_EMEM, "out of memory"); return NULL; }
   }
+  if (threads > 1 && (double)np * n[2] * sizeof(double) <= MC_ALL_BYTES &&
+      (fp.all = malloc(np * (size_t)n[2] * sizeof *fp.all)) &&
+      gr_pool_for(n[2], plane_item, &fp, threads, NULL, NULL, NULL, e)) {
+    free(fp.all);
+    free(fp.x);
+    free(s.rd);
+    return NULL;
+  }
   gr_mesh *m = mc_run(&s, n[2], field_plane, &fp, refine ? f : NULL, e);
+  free(fp.all);
   free(fp.x);
   return m;
 }

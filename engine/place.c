@@ -371,6 +371,9 @@ int gr_job_run(gr_job *j, const gr_job_run_opts *r, gr_err *e) {
   ba.items = items;
   ba.jb = -1;
   rc = r->direct ? run_direct(j, &ba, ga, gb, r, &done, total, e) : run_templates(j, &ba, ga, gb, r, &done, total, e);
+  gr_err e2;
+  int rc2 = gr_build_finish(&ba, rc ? &e2 : e); /* the templates still being stored */
+  if (rc == GR_OK) rc = rc2;
   free(items);
   gr_build_done(&ba);
   pthread_mutex_destroy(&kbmu);

@@ -56,6 +56,16 @@ expect "full disk names the file" "cannot write $d/full/out.cli" "$out"
 [ $rc != 0 ] && pass "full disk exit non-zero" || fail "full disk exit" "rc=$rc"
 left=$(ls -A "$d/full")
 [ -z "$left" ] && pass "full disk leaves no partial file" || fail "full disk leaves no partial file" "$left"
+# the knowledge base's disk full (its writer thread fails on a 1 MB record
+# while the small CLI would fit): the job fails naming the record, no CLI
+# left, no temporary record left
+mkdir -p "$d/kbfull"
+out=$( (trap '' XFSZ; ulimit -f 200; $G run recipes/lattice.lua -D cells=2,2,1 -D kb="$d/kbfull/kb" -D kb_store=all \
+  -D layers=1:2 -o "$d/kbfull/out.cli" -q) 2>&1); rc=$?
+expect "full knowledge base names the record" "cannot write $d/kbfull/kb/t/[0-9a-f]{64}\.gtp" "$out"
+[ $rc != 0 ] && pass "full knowledge base exit non-zero" || fail "full knowledge base exit" "rc=$rc"
+left=$( (ls -A "$d/kbfull"; ls -A "$d/kbfull/kb/t") | grep -E "^out|\.tmp-")
+[ -z "$left" ] && pass "full knowledge base leaves no partial file" || fail "full knowledge base leaves no partial file" "$left"
 # a laser profile whose fields do not cover the part, and a malformed profile:
 # errors naming the profile and the field, no output
 cat > "$d/far.yaml" <<'YAML'
