@@ -369,6 +369,7 @@ static void push_stats(lua_State *L, gr_job *j, const sinkctx *s, double units) 
   gr_lua_setint(L, "stored", st->kb_stored);
   gr_lua_setint(L, "not_stored", st->kb_not_stored);
   gr_lua_setint(L, "held_max", st->held_max);
+  gr_lua_setint(L, "banded_rows", st->banded_rows);
   /* share of the unique templates taken from the knowledge base (0 when none
    * was reused), and voxels per template (how much the job repeats itself) */
   gr_lua_setnum(L, "reuse_ratio", st->classes ? (double)st->reused / st->classes : 0);

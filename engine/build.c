@@ -161,6 +161,8 @@ static int will_store(const gr_build *a, const gr_vclass *cl) {
   return a->kb && !cl->trimmed && a->jb < 0 && should_store(a->kb_store, cl->count);
 }
 
+int gr_build_stores(const gr_build *a, int c) { return will_store(a, &a->j->cls[c]); }
+
 /* Phase 2, per (class, layer chunk). The sections stay: layer assembly
  * reads them where a neighbour is graded otherwise (facestep.h). */
 static int layers_item(void *arg_, int item, gr_err *e) {
@@ -247,7 +249,8 @@ static int make_work(gr_build *a, const int *cs, int nc, gr_err *e) {
   a->nwork = 0;
   for (int q = 0; q < nc; q++) {
     const gr_vclass *cl = &j->cls[cs[q]];
-    for (int s = 0; s < cl->t->nl; s += 5) {
+    int sa = a->lb > 0 ? a->la : 0, sb = a->lb > 0 && a->lb < cl->t->nl ? a->lb : cl->t->nl;
+    for (int s = sa; s < sb; s += 5) {
       if ((size_t)a->nwork + 1 > cap) {
         cap = cap ? 2 * cap : 64;
         int *wc = realloc(a->wc, cap * sizeof *wc), *wa = realloc(a->wa, cap * sizeof *wa), *wb = realloc(a->wb, cap * sizeof *wb);
@@ -258,7 +261,7 @@ static int make_work(gr_build *a, const int *cs, int nc, gr_err *e) {
       }
       a->wc[a->nwork] = cs[q];
       a->wa[a->nwork] = s;
-      a->wb[a->nwork] = s + 5 < cl->t->nl ? s + 5 : cl->t->nl;
+      a->wb[a->nwork] = s + 5 < sb ? s + 5 : sb;
       a->nwork++;
     }
   }
@@ -330,7 +333,9 @@ static void prog_part_fn(void *ud, const char *stage, long d, long n) {
  * share closest points group by group, the others each on its own. */
 int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, gr_err *e) {
   gr_job *j = a->j;
-  int rc = gr_pool_for(a->nitems, prepare_item, a, j->o.threads, NULL, NULL, stage, e);
+  /* layer bands (a->lb > 0): the first prepares and makes the fields, the last stores */
+  int first = a->lb <= 0 || a->la == 0, last = a->lb <= 0 || a->band_last;
+  int rc = first ? gr_pool_for(a->nitems, prepare_item, a, j->o.threads, NULL, NULL, stage, e) : GR_OK;
   int n = a->nitems;
   /* groups: gid[q] = index (into items) of the group's first class, -1 = none */
   int *cs = malloc((n + 1) * sizeof *cs), *gid = malloc((n + 1) * sizeof *gid);
@@ -364,7 +369,7 @@ int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, g
     for (int q = 0; q < n; q++) {
       if (!j->cls[a->items[q]].need) continue;
       if (pass == 0 && gid[q] == q && !a->ghit[q]) { a->fc[nf] = a->items[q]; a->fref[nf] = q; a->fkind[nf++] = 1; }
-      if ((gid[q] >= 0) != pass) continue;
+      if ((gid[q] >= 0) != pass || !first) continue; /* a later band keeps the class fields */
       a->fc[nf] = a->items[q];
       a->fref[nf] = gid[q];
       a->fkind[nf++] = pass ? 2 : 0;
@@ -405,10 +410,10 @@ int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, g
   gr_err e2;
   gr_err_clear(&e2);
   /* store (and qualify) only complete templates: after a failure some layers were never built */
-  int rc2 = rc == GR_OK ? gr_pool_for(a->nitems, store_item, a, 1, NULL, NULL, stage, &e2) : GR_OK;
+  int rc2 = rc == GR_OK && last ? gr_pool_for(a->nitems, store_item, a, 1, NULL, NULL, stage, &e2) : GR_OK;
   if (rc == GR_OK && rc2) { rc = rc2; *e = e2; }
   /* on failure, drop any fields left */
-  for (int q = 0; q < a->nitems; q++) {
+  for (int q = 0; q < a->nitems && (last || rc); q++) {
     gr_vclass *cl = &j->cls[a->items[q]];
     gr_field_free(cl->field);
     cl->field = NULL;

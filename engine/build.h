@@ -49,11 +49,18 @@ typedef struct gr_build {
   gr_build_group cache[GR_BUILD_CACHE];
   long calls;              /* gr_build_classes calls so far */
   gr_kbw *kbw;             /* the knowledge base's writer, started at the first record stored */
+  /* layer bands: lb <= 0 builds the templates whole in one call; else the
+   * call builds their layers [la, lb) only, the call with la = 0 prepares
+   * them and their fields, the one with band_last set qualifies and stores
+   * them (a template's layers are independent of each other) */
+  int la, lb, band_last;
 } gr_build;
 
 /* Build (or load) the templates of the classes in a->items; progress via r
  * (may be NULL) under the name `stage`. */
 int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, gr_err *e);
+/* 1 if class c's template, once built, is stored (then it is built whole). */
+int gr_build_stores(const gr_build *a, int c);
 /* Wait for the templates handed to the knowledge base's writer to be
  * stored (counted in the job's statistics); the writer's first failure. */
 int gr_build_finish(gr_build *a, gr_err *e);

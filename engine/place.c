@@ -257,6 +257,46 @@ static int band_rows(const gr_job *j, int k, int ga, int gb, int below, int abov
   return 1;
 }
 
+/* Whether row k's new classes (ba->items) may be built a few layers at a
+ * time (run_bands): assembly reads no layers around (down- and up-skin
+ * regions: below = above = 0), and no class is stored or used by a later
+ * row (last[c] = k), so no template is needed whole. A part graded all over
+ * (every voxel its own class) is. */
+static int banded(const gr_build *ba, int k, const int *last, int below, int above) {
+  if (below || above || ba->nitems == 0) return 0;
+  for (int q = 0; q < ba->nitems; q++) {
+    int c = ba->items[q];
+    if (last[c] != k || gr_build_stores(ba, c)) return 0;
+  }
+  return 1;
+}
+
+/* Row k's new classes built GR_BAND_LAYERS template layers at a time: each
+ * band's layers are built, those in [a, b] streamed, and released, so that
+ * the row's templates are never all held whole. The output is the same:
+ * a template layer depends on its class alone. */
+#define GR_BAND_LAYERS 10
+static int run_bands(gr_job *j, gr_build *ba, int k, int a, int b, const gr_job_run_opts *r, long *done, long total,
+                     gr_err *e) {
+  int g0 = gr_grid_row_first(&j->grid, k), nl = gr_grid_row_layers(&j->grid, k), rc = GR_OK;
+  j->st.banded_rows++;
+  for (int s = 0; s < nl && rc == GR_OK; s += GR_BAND_LAYERS) {
+    int t = s + GR_BAND_LAYERS < nl ? s + GR_BAND_LAYERS : nl;
+    ba->la = s;
+    ba->lb = t;
+    ba->band_last = t == nl;
+    double t1 = gr_now();
+    rc = gr_build_classes(ba, r, "templates", e);
+    j->st.seconds[1] += gr_now() - t1;
+    int sa = g0 + s > a ? g0 + s : a, sb = g0 + t - 1 < b ? g0 + t - 1 : b;
+    if (rc == GR_OK && sa <= sb) rc = gr_stream_layers(j, sa, sb, r, done, total, e);
+    for (int q = 0; q < ba->nitems; q++)
+      if (j->cls[ba->items[q]].t) gr_tmpl_release(j->cls[ba->items[q]].t, s, t);
+  }
+  ba->la = ba->lb = ba->band_last = 0;
+  return rc;
+}
+
 /* Templates (from the knowledge base or built), streamed band by band: per
  * row of voxels (a band one cell high), the classes the row's layers read
  * (its own, and those of the rows around when assembly reads layers around:
@@ -288,13 +328,17 @@ static int run_templates(gr_job *j, gr_build *ba, int ga, int gb, const gr_job_r
         int c = j->vcls[j->roworder[(size_t)kk * j->rowlen + q]];
         if (!j->cls[c].t && seen[c] < 0) { seen[c] = k; ba->items[n++] = c; }
       }
-    double t1 = gr_now();
     ba->nitems = n;
-    rc = gr_build_classes(ba, r, "templates", e); /* progress per band */
-    j->st.seconds[1] += gr_now() - t1;
     held += n;
     if (held > j->st.held_max) j->st.held_max = held;
-    if (rc == GR_OK) rc = gr_stream_layers(j, a, b, r, done, total, e);
+    if (banded(ba, k, last, below, above)) {
+      rc = run_bands(j, ba, k, a, b, r, done, total, e);
+    } else {
+      double t1 = gr_now();
+      rc = gr_build_classes(ba, r, "templates", e); /* progress per band */
+      j->st.seconds[1] += gr_now() - t1;
+      if (rc == GR_OK) rc = gr_stream_layers(j, a, b, r, done, total, e);
+    }
     for (int kk = k0; kk <= k1; kk++)
       for (int q = 0; q < j->rowcount[kk]; q++) {
         int c = j->vcls[j->roworder[(size_t)kk * j->rowlen + q]];

@@ -45,6 +45,7 @@ typedef struct gr_job_stats {
   int kb_stored;               /* templates written to the knowledge base */
   int kb_not_stored;           /* built but not written (kb_store policy) */
   int held_max;                /* most templates held in memory at once (streaming) */
+  int banded_rows;             /* rows whose templates were built a band of layers at a time */
   size_t vectors[GR_NKINDS];   /* scan vectors per kind */
   double length[GR_NKINDS];    /* scan length per kind, mm */
   size_t jumps;                /* jumps (all lasers) */

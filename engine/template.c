@@ -22,6 +22,23 @@ void gr_tmpl_free(gr_tmpl *t) {
   free(t);
 }
 
+void gr_tmpl_release(gr_tmpl *t, int qa, int qb) {
+  for (int q = qa < 0 ? 0 : qa; q < qb && q < t->nl; q++) {
+    gr_tlayer *l = &t->l[q];
+    gr_layer *p = gr_layer_new(0); /* keeps the thin-wall count for qualification */
+    if (!p) continue;                /* out of memory: the layer stays */
+    if (l->paths) p->thin_walls = l->paths->thin_walls;
+    gr_rings_free(l->section);
+    gr_rings_free(l->region);
+    gr_layer_free(l->paths);
+    gr_layer_free(l->faces);
+    free(atomic_exchange(&l->fx, NULL));
+    l->section = l->region = NULL;
+    l->faces = NULL;
+    l->paths = p;
+  }
+}
+
 gr_tmpl *gr_tmpl_new(int ja, int jb) {
   gr_tmpl *t = calloc(1, sizeof *t);
   if (!t) return NULL;

@@ -64,6 +64,10 @@ typedef struct gr_tmpl_in {
 /* A template for local layers [ja, jb), layers empty; NULL when out of memory. */
 gr_tmpl *gr_tmpl_new(int ja, int jb);
 void gr_tmpl_free(gr_tmpl *t);
+/* Free layers [qa, qb)'s section, region, paths and face data once no layer
+ * assembly reads them (layer bands, place.c); their area, verify figures and
+ * thin-wall counts stay for qualification. */
+void gr_tmpl_release(gr_tmpl *t, int qa, int qb);
 /* Margin of a template's slice window around the voxel (mm): whole slice
  * cells, wide enough for the contours and hatch region of the voxel's edge. */
 double gr_tmpl_window(const gr_job_opts *o);

@@ -28,6 +28,12 @@ h=$(val "$d/c.yaml" held_max); b=$(val "$d/c.yaml" built)
   fail "continuous held" "built $b, held_max $h (expected 12, 4)"
 cmp -s "$d/c.cli" "$d/cd.cli" && pass "continuous: streamed templates = direct computation, byte for byte" ||
   fail "continuous cli" "$(cmp "$d/c.cli" "$d/cd.cli" | head -1)"
+# a part graded all over: every row built 10 layers at a time (20 layers a
+# row here: two bands; its CLI = the direct one, above); the periodic part's
+# classes recur: built whole
+bc=$(val "$d/c.yaml" banded_rows); bp=$(val "$d/p.yaml" banded_rows)
+[ "$bc" = 3 ] && [ "$bp" = 0 ] && pass "layer bands: 3 of 3 continuous rows, 0 of the periodic part's" ||
+  fail "banded rows" "continuous $bc (expected 3), periodic $bp (expected 0)"
 h=$(val "$d/p.yaml" held_max); b=$(val "$d/p.yaml" built)
 [ "$b" = 2 ] && [ "$h" = 2 ] && pass "periodic in z: 2 classes recurring every other row built once each, 2 held" ||
   fail "periodic held" "built $b, held_max $h (expected 2, 2)"
