@@ -9,7 +9,9 @@
 -- once (streamed row by row of voxels) and the continuous/constant
 -- CPU ratio, at three sizes (2, 3 and 4 cells a side). `-D sizes=2,3,4,6`
 -- adds the issue's 6 x 6 x 6 (about a minute of CPU);
--- `-D extra='-D kb_store=all'` passes options to every job.
+-- `-D extra='-D kb_store=all'` passes options to every job. Last, the same
+-- grading about a thin and a thick mean on 3 x 3 x 1 cells (thick sheets cost
+-- several times more per voxel-layer).
 local sizes_s = gradus.param("sizes", "2,3,4", { help = "cube sizes n (cells per side), comma-separated" })
 local extra = gradus.param("extra", "", { help = "more -D options for every job" })
 local benchjob = require "gradus.benchjob"
@@ -40,5 +42,17 @@ for s in sizes_s:gmatch("%d+") do
       1000 * r[3] / vl, st.peak_rss_mb,
       r[1] == "continuous" and ("%.1fx"):format(tcpu / ccpu) or ""))
   end
+end
+-- The thickness matters as much as the count: a 3 x 3 x 1 block (9 unique
+-- voxels) with the same grading about a thin and a thick mean. Thick sheets
+-- lie beyond the surface's reach, where every refined point searches the
+-- mesh for a nearer patch (doc/performance.md, "The 20 x 20 x 20 continuous
+-- cube, run").
+print("thickness effect: 3x3x1 cells, kb off (9 unique voxels, 50 layers; fixed costs included)")
+for _, th in ipairs({ "0.1+0.04*sin(x/3)*cos(y/2.5)", "0.26+0.04*sin(x/3)*cos(y/2.5)" }) do
+  local st, cpu = benchjob.run(dir, "thick", ("-D cells=3,3,1 -D format=binary -D kb=off -D 'thickness=%s' %s")
+    :format(th, extra))
+  print(("  T = %-30s  CPU %6.2f s  %6.2f ms per unique voxel-layer"):format(th, cpu,
+    1000 * cpu / (st.templates.unique * st.layers)))
 end
 os.execute("rm -rf '" .. dir .. "'")
