@@ -1069,7 +1069,8 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
    * the BVH, the thickness checks and the reach, when threads allow */
   dev_job dj = {.f = f, .out = f->herr};
   int dev = !lk && o->mode == GR_DIST_EXACT;
-  int dev_th = dev && o->threads > 1 && pthread_create(&dj.th, NULL, dev_main, &dj) == 0;
+  int dev_th = dev && o->threads > 1 && gr_field_threadsafe(f->phi);
+  dev_th = dev_th && pthread_create(&dj.th, NULL, dev_main, &dj) == 0;
   double maxt;
   int rc = offset_checks(f, o, lk, reach, &maxt, e);
   if (dev_th) pthread_join(dj.th, NULL);

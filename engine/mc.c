@@ -460,7 +460,7 @@ gr_mesh *gr_mc_field_mt(const gr_field *f, const double lo[3], const double hi[3
     s.rd = malloc(s.capd * sizeof *s.rd);
     if (!s.rd) { free(fp.x); gr_fail(e, GR_EMEM, "out of memory"); return NULL; }
   }
-  if (threads > 1 && (double)np * n[2] * sizeof(double) <= MC_ALL_BYTES &&
+  if (threads > 1 && gr_field_threadsafe(f) && (double)np * n[2] * sizeof(double) <= MC_ALL_BYTES &&
       (fp.all = malloc(np * (size_t)n[2] * sizeof *fp.all)) &&
       gr_pool_for(n[2], plane_item, &fp, threads, NULL, NULL, NULL, e)) {
     free(fp.all);

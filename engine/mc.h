@@ -16,8 +16,9 @@ gr_mesh *gr_mc(const gr_grid3 *g, double iso, gr_err *e);
  * refine != 0 instead of linear interpolation only. */
 gr_mesh *gr_mc_field(const gr_field *f, const double lo[3], const double hi[3],
                      const int n[3], int refine, gr_err *e);
-/* The same, the samples taken on `threads` threads (f must be thread-safe;
- * the mesh is the same as gr_mc_field's). */
+/* The same, the samples taken on `threads` threads when f is thread-safe
+ * (gr_field_threadsafe; else on the calling thread): the same mesh as
+ * gr_mc_field's. */
 gr_mesh *gr_mc_field_mt(const gr_field *f, const double lo[3], const double hi[3],
                         const int n[3], int refine, int threads, gr_err *e);
 

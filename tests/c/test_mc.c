@@ -2,6 +2,7 @@
  * manifoldness of random grids, sphere area and volume). */
 #include <stdlib.h>
 #include <string.h>
+#include <pthread.h>
 #include "check.h"
 #include "mc.h"
 
@@ -141,10 +142,40 @@ TEST(threads_same_mesh) {
   gr_field_free(f);
 }
 
+/* A sphere of radius 2 as a field that is not thread-safe: it notes any
+ * call from a thread other than the one that made it. */
+typedef struct lone { pthread_t owner; int foreign; } lone;
+static int lone_fn(void *ud, size_t n, const double *x, const double *y, const double *z, double *out, gr_err *e) {
+  (void)e;
+  lone *l = ud;
+  if (!pthread_equal(pthread_self(), l->owner)) l->foreign = 1;
+  for (size_t i = 0; i < n; i++) out[i] = sqrt(x[i] * x[i] + y[i] * y[i] + z[i] * z[i]) - 2;
+  return GR_OK;
+}
+
+/* gr_mc_field_mt on a field that is not thread-safe samples on the calling
+ * thread only, and gives the mesh of one thread. */
+TEST(threads_not_threadsafe) {
+  lone l = {pthread_self(), 0};
+  gr_field *f = gr_field_callback(lone_fn, NULL, &l, NULL, 0, "lone sphere");
+  double lo[3] = {-3, -3, -3}, hi[3] = {3, 3, 3};
+  int n[3] = {31, 31, 31};
+  gr_err e;
+  gr_mesh *a = gr_mc_field(f, lo, hi, n, 1, &e), *b = gr_mc_field_mt(f, lo, hi, n, 1, 4, &e);
+  CHECK(a && b && a->nf > 100 && a->nv == b->nv && a->nf == b->nf, "meshes made");
+  if (a && b && a->nv == b->nv && a->nf == b->nf)
+    CHECK(!memcmp(a->v, b->v, 3 * a->nv * sizeof *a->v) && !memcmp(a->f, b->f, 3 * a->nf * sizeof *a->f), "the same mesh");
+  CHECK(!l.foreign, "never evaluated on another thread");
+  gr_mesh_free(a);
+  gr_mesh_free(b);
+  gr_field_free(f);
+}
+
 int main(void) {
   RUN(all_256_cases);
   RUN(random_closed);
   RUN(sphere_converges);
   RUN(threads_same_mesh);
+  RUN(threads_not_threadsafe);
   DONE();
 }
