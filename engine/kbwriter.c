@@ -83,8 +83,7 @@ int gr_kbw_finish(gr_kbw *w, long *stored, gr_err *e) {
   w->stop = 1;
   pthread_cond_broadcast(&w->cv);
   pthread_mutex_unlock(&w->mu);
-  pthread_join(w->th, NULL);
-  free_all(w->q, w->n); /* left only after a failure */
+  pthread_join(w->th, NULL); /* the writer ends with the queue empty */
   int rc = w->rc;
   if (rc) *e = w->err;
   if (stored) *stored = w->stored;

@@ -257,6 +257,14 @@ static int band_rows(const gr_job *j, int k, int ga, int gb, int below, int abov
   return 1;
 }
 
+/* gr_build_classes, its time counted in the templates stage. */
+static int build_timed(gr_job *j, gr_build *ba, const gr_job_run_opts *r, const char *stage, gr_err *e) {
+  double t0 = gr_now();
+  int rc = gr_build_classes(ba, r, stage, e);
+  j->st.seconds[1] += gr_now() - t0;
+  return rc;
+}
+
 /* Whether row k's new classes (ba->items) may be built a few layers at a
  * time (run_bands): assembly reads no layers around (down- and up-skin
  * regions: below = above = 0), and no class is stored or used by a later
@@ -285,9 +293,7 @@ static int run_bands(gr_job *j, gr_build *ba, int k, int a, int b, const gr_job_
     ba->la = s;
     ba->lb = t;
     ba->band_last = t == nl;
-    double t1 = gr_now();
-    rc = gr_build_classes(ba, r, "templates", e);
-    j->st.seconds[1] += gr_now() - t1;
+    rc = build_timed(j, ba, r, "templates", e);
     int sa = g0 + s > a ? g0 + s : a, sb = g0 + t - 1 < b ? g0 + t - 1 : b;
     if (rc == GR_OK && sa <= sb) rc = gr_stream_layers(j, sa, sb, r, done, total, e);
     for (int q = 0; q < ba->nitems; q++)
@@ -334,9 +340,7 @@ static int run_templates(gr_job *j, gr_build *ba, int ga, int gb, const gr_job_r
     if (banded(ba, k, last, below, above)) {
       rc = run_bands(j, ba, k, a, b, r, done, total, e);
     } else {
-      double t1 = gr_now();
-      rc = gr_build_classes(ba, r, "templates", e); /* progress per band */
-      j->st.seconds[1] += gr_now() - t1;
+      rc = build_timed(j, ba, r, "templates", e); /* progress per band */
       if (rc == GR_OK) rc = gr_stream_layers(j, a, b, r, done, total, e);
     }
     for (int kk = k0; kk <= k1; kk++)
@@ -362,11 +366,9 @@ static int run_direct(gr_job *j, gr_build *ba, int ga, int gb, const gr_job_run_
     for (int q = 0; q < j->rowcount[k]; q++) ba->items[n++] = j->vcls[j->roworder[(size_t)k * j->rowlen + q]];
     ba->ja = a - g0;
     ba->jb = b - g0 + 1;
-    double tb = gr_now();
     ba->nitems = n;
     if (n > j->st.held_max) j->st.held_max = n;
-    rc = gr_build_classes(ba, NULL, "voxels", e);
-    j->st.seconds[1] += gr_now() - tb;
+    rc = build_timed(j, ba, NULL, "voxels", e);
     if (rc == GR_OK) rc = gr_stream_layers(j, a, b, r, done, total, e);
     for (int q = 0; q < n; q++) { gr_tmpl_free(j->cls[ba->items[q]].t); j->cls[ba->items[q]].t = NULL; }
   }

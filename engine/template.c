@@ -9,15 +9,20 @@
 #include "verify.h"
 #include "version.h"
 
+/* Free a template layer's rings, scans and face data (NULL after). */
+static void tlayer_drop(gr_tlayer *l) {
+  gr_rings_free(l->section);
+  gr_rings_free(l->region);
+  gr_layer_free(l->paths);
+  gr_layer_free(l->faces);
+  free(atomic_exchange(&l->fx, NULL));
+  l->section = l->region = NULL;
+  l->paths = l->faces = NULL;
+}
+
 void gr_tmpl_free(gr_tmpl *t) {
   if (!t) return;
-  for (int i = 0; i < t->nl; i++) {
-    gr_rings_free(t->l[i].section);
-    gr_rings_free(t->l[i].region);
-    gr_layer_free(t->l[i].paths);
-    gr_layer_free(t->l[i].faces);
-    free(atomic_load(&t->l[i].fx));
-  }
+  for (int i = 0; i < t->nl; i++) tlayer_drop(&t->l[i]);
   free(t->l);
   free(t);
 }
@@ -28,13 +33,7 @@ void gr_tmpl_release(gr_tmpl *t, int qa, int qb) {
     gr_layer *p = gr_layer_new(0); /* keeps the thin-wall count for qualification */
     if (!p) continue;                /* out of memory: the layer stays */
     if (l->paths) p->thin_walls = l->paths->thin_walls;
-    gr_rings_free(l->section);
-    gr_rings_free(l->region);
-    gr_layer_free(l->paths);
-    gr_layer_free(l->faces);
-    free(atomic_exchange(&l->fx, NULL));
-    l->section = l->region = NULL;
-    l->faces = NULL;
+    tlayer_drop(l);
     l->paths = p;
   }
 }
