@@ -37,6 +37,7 @@ static gr_field *canon_field(gr_job *j, int c, gr_err *e) {
   gr_offset_opts oo = offset_opts(j, s, phi, j->o.origin, 0.75 * gr_cell_min(j->o.cell));
   oo.thickness = 0;
   oo.threads = j->o.threads; /* H meshed and checked on all threads: nothing else runs meanwhile */
+  oo.periodic = 1; /* a TPMS of period cell: H's local reach over one period, shared by the group */
   gr_field *g = gr_offset_field_new(&oo, e);
   gr_field_free(phi);
   return g;

@@ -8,6 +8,7 @@
 #include "expr.h"
 #include "grid.h"
 #include "mc.h"
+#include "reach.h"
 
 /* ---- offset field ---- */
 gr_offset_opts gr_offset_defaults(void) {
@@ -21,6 +22,8 @@ gr_offset_opts gr_offset_defaults(void) {
   o.mode = GR_DIST_EXACT;
   return o;
 }
+
+typedef struct lreach_slot lreach_slot;
 
 typedef struct offset {
   gr_field *phi;
@@ -38,6 +41,8 @@ typedef struct offset {
   double tmax;        /* max T over H's vertices */
   double herr;        /* bound on the distance between H's mesh and phi = 0 */
   double reach;       /* below this distance a local closest point is the closest (mm) */
+  lreach_slot *lrs;   /* H's local reach, made when first needed (periodic H), or NULL;
+                         owned unless `like` */
   double mdev;        /* measured: how far H's mesh lies off phi = 0 (mm, exact mode) */
   gr_field *like;     /* the offset field whose H and BVH are shared, or NULL */
   gr_dtable *dens;    /* density -> T table, or NULL */
@@ -51,6 +56,26 @@ typedef struct offset {
   char warning[256];  /* offsets of neighbouring sheet parts touch (where), or "" */
 } offset;
 
+/* H's local reach (reach.h), made when first needed: by the first point
+ * beyond the global reach that a field sharing H evaluates (thin sheets
+ * never need it). Made once, under the mutex, always from the same H and
+ * options: the same table whichever thread or voxel asks first. */
+struct lreach_slot {
+  pthread_mutex_t mu;
+  int state;           /* 0: not made; 1: made (r NULL when that failed: the reach serves) */
+  gr_reach *r;
+  const struct offset *owner; /* the field whose H it is (shift 0) */
+  double lo[3], period[3];    /* one period of H */
+  int threads;
+};
+
+static void lreach_free(lreach_slot *s) {
+  if (!s) return;
+  pthread_mutex_destroy(&s->mu);
+  gr_reach_free(s->r);
+  free(s);
+}
+
 static void offset_free(void *ud) {
   offset *f = ud;
   if (!f) return;
@@ -59,6 +84,7 @@ static void offset_free(void *ud) {
   gr_field_free(f->phi);
   gr_mesh_free(f->own);
   if (!f->like) gr_bvh_free(f->bvh);
+  if (!f->like) lreach_free(f->lrs);
   gr_field_free(f->like);
   gr_expr_free(f->t);
   gr_expr_free(f->tin);
@@ -305,6 +331,8 @@ static int exact_newton(const offset *f, const double p[3], double q[3]) {
   return 0;
 }
 
+static double reach_for(const offset *f, const double p[3], const double q[3], double d);
+
 /* Closest point of H to p within maxd, H being the (shared) mesh translated by f->shift. */
 static void closest_h(const offset *f, const double p[3], double maxd, gr_hit *h) {
   double pp[3] = {p[0] - f->shift[0], p[1] - f->shift[1], p[2] - f->shift[2]};
@@ -344,10 +372,11 @@ static double take_nearer(const offset *f, const double p[3], double q[3], gr_hi
  * the mesh away from q's own patch (which lies within sqrt((d + m)^2 - d^2)
  * of q there), refined and taken when nearer. Near the medial surface two
  * patches are within the mesh's error of each other, and the mesh alone
- * would pick either. Returns the distance |p - q|. */
-static double nearest_patch(const offset *f, const double p[3], double q[3], double tol, int away) {
+ * would pick either. With `local`, the local reach at q may serve instead
+ * of H's reach (it is made when first needed). Returns the distance |p - q|. */
+static double nearest_patch(const offset *f, const double p[3], double q[3], double tol, int away, int local) {
   double d = dist3(p, q);
-  if (d < f->reach) return d; /* within the reach: no other patch can be nearer */
+  if (d < (local ? reach_for(f, p, q, d) : f->reach)) return d; /* within the reach: no other patch can be nearer */
   gr_hit c;
   closest_h(f, p, d - tol, &c);
   d = take_nearer(f, p, q, &c);
@@ -433,7 +462,7 @@ static int offset_eval(void *ud, size_t n, const double *x, const double *y, con
         double p[3] = {x[s + i], y[s + i], z[s + i]}, qq[3] = {qx[q], qy[q], qz[q]};
         __atomic_fetch_add(&f->nrefine, 1, __ATOMIC_RELAXED);
         exact_refine(f, p, qq);
-        dd[q] = nearest_patch(f, p, qq, PATCH_TOL, 1); /* the mesh may pick the farther of two patches */
+        dd[q] = nearest_patch(f, p, qq, PATCH_TOL, 1, 1); /* the mesh may pick the farther of two patches */
         qx[q] = qq[0]; qy[q] = qq[1]; qz[q] = qq[2];
         rx[nr] = qq[0]; ry[nr] = qq[1]; rz[nr] = qq[2];
         rpx[nr] = p[0]; rpy[nr] = p[1]; rpz[nr] = p[2];
@@ -529,7 +558,7 @@ int gr_offset_closest(const gr_field *f_, size_t n, const double *x, const doubl
           (p[0] - pp[0]) * (p[0] - pp[0]) + (p[1] - pp[1]) * (p[1] - pp[1]) + (p[2] - pp[2]) * (p[2] - pp[2]) < 0.01 * f->L * f->L) {
         double qq[3] = {pq[0], pq[1], pq[2]};
         if (exact_newton(f, p, qq)) {
-          double d = nearest_patch(f, p, qq, f->herr, 0);
+          double d = nearest_patch(f, p, qq, f->herr, 0, 0);
           if (d <= dmax) {
             memcpy(qi, qq, sizeof qq);
             sd[s + i] = sg * d;
@@ -592,6 +621,11 @@ int gr_offset_values_band(const gr_field *f_, size_t n, const double *q, const d
   return values_at(f, n, NULL, q, sd, band, out, e);
 }
 
+double gr_offset_keeps_foot(const gr_field *f_, const double p[3], const double q[3]) {
+  const offset *f = gr_field_callback_data(f_, offset_eval);
+  return f ? reach_for(f, p, q, INFINITY) : -1;
+}
+
 double gr_offset_herr(const gr_field *f_) {
   const offset *f = gr_field_callback_data(f_, offset_eval);
   return f ? f->herr : -1;
@@ -615,7 +649,7 @@ int gr_offset_strict(const gr_field *f_, const double p[3], double q[3], double 
   const offset *f = gr_field_callback_data(f_, offset_eval);
   if (!f) return gr_fail(e, GR_EARG, "closest points need an offset field");
   if (f->mode != GR_DIST_EXACT || isnan(q[0])) return GR_OK;
-  double d = fabs(*sd), d2 = nearest_patch(f, p, q, PATCH_TOL, 1);
+  double d = fabs(*sd), d2 = nearest_patch(f, p, q, PATCH_TOL, 1, 1);
   if (d2 < d) *sd = *sd < 0 ? -d2 : d2;
   return GR_OK;
 }
@@ -655,7 +689,7 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
         /* the hints come from grid nodes whose own closest points were
          * checked strictly near zero (gr_offset_values): across the medial
          * surface they lie on both patches, so no search away from them */
-        d = nearest_patch(f, p, qi, PATCH_TOL, 0);
+        d = nearest_patch(f, p, qi, PATCH_TOL, 0, 1);
       } else {
         /* no usable hint: search the mesh */
         gr_hit h;
@@ -685,7 +719,9 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
  * tighter 1e-7 L, as exact_newton stops, left seven times more points to
  * the exact solve on the continuous P job).
  * The distance is then off by about D^2 / 2 times the larger of
- * kappa / (1 - d kappa) (along the surface; kappa <= 1 / reach) and
+ * kappa / (1 - d kappa) (along the surface; kappa <= 1 / reach, the local
+ * reach at q where it serves: it holds cut distances, at most the focal
+ * distances 1 / kappa) and
  * |phi_nn| / |grad phi| (across it; estimated from the last two gradients):
  * accepted when that is below MODEL_ERR L and the distance is within the
  * reach (then no other patch is nearer). */
@@ -711,11 +747,11 @@ static int model_foot(const offset *f, const double p[3], const double x[3], dou
       D2 += (q[a] - o[a]) * (q[a] - o[a]);
     }
     *sd = s * sqrt(g2);
-    double d = fabs(*sd), D = sqrt(D2), rho = D / prev;
-    if (!(d < f->reach)) return 0;
+    double d = fabs(*sd), D = sqrt(D2), rho = D / prev, R = reach_for(f, p, q, d);
+    if (!(d < R)) return 0;
     if (r > 0 && (D == 0 || (rho < 0.5 && rho * D < 1e-6 * f->L * (1 - rho)))) {
       double dg[3] = {g[0] - gp[0], g[1] - gp[1], g[2] - gp[2]};
-      double K = fmax(1 / (f->reach - d), sqrt(gr_dot3(dg, dg) / (gr_dot3(gp, gp) * prev2)));
+      double K = fmax(1 / (R - d), sqrt(gr_dot3(dg, dg) / (gr_dot3(gp, gp) * prev2)));
       return K * D2 <= 2 * MODEL_ERR * f->L;
     }
     prev = D;
@@ -737,7 +773,7 @@ int gr_offset_eval_model(const gr_field *f_, size_t n, const double *x, const do
       const double *c = pred + 3 * (s + i);
       double P[3] = {x[s + i], y[s + i], z[s + i]};
       out[s + i] = NAN;
-      if (f->mode != GR_DIST_EXACT || isnan(c[0]) || !(dist3(P, c) < f->reach)) continue;
+      if (f->mode != GR_DIST_EXACT || isnan(c[0]) || !(dist3(P, c) < reach_for(f, P, c, dist3(P, c)))) continue;
       int ok = model_foot(f, P, c, q + 3 * k, sd + k, e);
       if (ok < 0) return e->code;
       if (!ok) continue;
@@ -932,46 +968,111 @@ static int exact_foot(const offset *f, const double p[3], double q[3]) {
   return 1;
 }
 
-/* A lower estimate of the surface's reach (mm): along the normals of a
- * sample of H's vertices (every 29th, both sides), how far a point keeps its
- * foot, by bisection, times REACH_SAFETY. A point nearer to the surface than
- * the reach has one closest point, and a local closest point (Newton from a
- * hint) nearer than it is that one: thin walls skip the nearer-patch search. */
+/* The vertex v of H's mesh moved onto phi = 0 (s) with its unit normal n
+ * there; 0 when that fails. */
+static int on_surface(const offset *f, const double v[3], double s[3], double n[3]) {
+  gr_err e;
+  memcpy(s, v, 3 * sizeof *s);
+  for (int it = 0; it < 6; it++) { /* onto phi = 0 */
+    double val;
+    if (gr_field_eval_grad(f->phi, 1, &s[0], &s[1], &s[2], &val, &n[0], &n[1], &n[2], &e)) break;
+    double g2 = gr_dot3(n, n);
+    if (!(g2 > 1e-300)) break;
+    for (int a = 0; a < 3; a++) s[a] -= val * n[a] / g2;
+  }
+  if (gr_field_grad(f->phi, 1, &s[0], &s[1], &s[2], &n[0], &n[1], &n[2], &e)) return 0;
+  double gn = sqrt(gr_dot3(n, n));
+  if (!(gn > 0)) return 0;
+  for (int a = 0; a < 3; a++) n[a] /= gn;
+  return 1;
+}
+
+static int foot_cb(void *ud, const double p[3], double q[3]) { return exact_foot(ud, p, q); }
+
+/* A lower estimate of the surface's reach (mm): the cut distance
+ * (reach.h) of a sample of H's vertices (every 29th, both sides, by
+ * bisection to 1e-3 L) times REACH_SAFETY. A point nearer to the surface
+ * than the reach has one closest point, and a local closest point (Newton
+ * from a hint) nearer than it is that one: thin walls skip the nearer-patch
+ * search. */
 #define REACH_SAFETY 0.6
 static double reach_estimate(const offset *f, const gr_offset_opts *o, size_t nv, const double *vx, const double *vy,
                              const double *vz) {
   double L = gr_cell_min(o->cell), best = 0.5 * L, eps = 0.2 * f->herr;
   size_t used = 0;
   for (size_t i = 0; i < nv; i += 29) {
-    double s[3] = {vx[i], vy[i], vz[i]}, g[3];
+    double v[3] = {vx[i], vy[i], vz[i]}, s[3], n[3];
     int inbox = 1;
-    for (int a = 0; a < 3; a++) inbox &= s[a] >= o->box_lo[a] && s[a] <= o->box_hi[a];
-    if (!inbox) continue;
-    gr_err e;
-    for (int it = 0; it < 6; it++) { /* onto phi = 0 */
-      double v;
-      if (gr_field_eval_grad(f->phi, 1, &s[0], &s[1], &s[2], &v, &g[0], &g[1], &g[2], &e)) break;
-      double g2 = gr_dot3(g, g);
-      if (!(g2 > 1e-300)) break;
-      for (int a = 0; a < 3; a++) s[a] -= v * g[a] / g2;
-    }
-    if (gr_field_grad(f->phi, 1, &s[0], &s[1], &s[2], &g[0], &g[1], &g[2], &e)) continue;
-    double gn = sqrt(gr_dot3(g, g));
-    if (!(gn > 0)) continue;
+    for (int a = 0; a < 3; a++) inbox &= v[a] >= o->box_lo[a] && v[a] <= o->box_hi[a];
+    if (!inbox || !on_surface(f, v, s, n)) continue;
     used++;
-    for (int sg = -1; sg <= 1; sg += 2) {
-      double lo = 0, hi = best; /* keeps its foot at lo; hi: not known */
-      for (int it = 0; it < 12 && hi - lo > 1e-3 * L; it++) {
-        double r = 0.5 * (lo + hi), p[3], q[3];
-        for (int a = 0; a < 3; a++) p[a] = s[a] + sg * r * g[a] / gn;
-        if (exact_foot(f, p, q) && dist3(q, s) < eps) lo = r; else hi = r;
-      }
-      double p[3], q[3];
-      for (int a = 0; a < 3; a++) p[a] = s[a] + sg * best * g[a] / gn;
-      if (hi < best || !(exact_foot(f, p, q) && dist3(q, s) < eps)) best = fmin(best, lo);
-    }
+    for (int sg = -1; sg <= 1; sg += 2)
+      best = fmin(best, gr_reach_bisect(foot_cb, (void *)f, s, n, sg, best, 1e-3 * L, 12, eps));
   }
   return used ? REACH_SAFETY * best : 0;
+}
+
+/* The table of H's local reach over one period (slot s), from H's vertices
+ * in the period box moved onto phi = 0; NULL when that fails. Cut distances
+ * are measured up to LREACH_CAP L: sheets up to about a quarter of the cell
+ * thick are served (thicker ones search H as before); a larger cap costs
+ * more, the largest empty balls of the common TPMS being some 0.4 L. */
+#define LREACH_CAP 0.3
+static gr_reach *lreach_make(const lreach_slot *s) {
+  const offset *f = s->owner;
+  size_t nv = f->h->nv, m = 0;
+  double *sn = malloc((6 * nv + 1) * sizeof *sn);
+  if (!sn) return NULL;
+  for (size_t i = 0; i < nv; i++) {
+    const double *v = f->h->v + 3 * i;
+    int in = 1;
+    for (int a = 0; a < 3; a++) in &= v[a] >= s->lo[a] && v[a] < s->lo[a] + s->period[a];
+    if (in && on_surface(f, v, sn + 3 * m, sn + 3 * nv + 3 * m)) m++;
+  }
+  gr_err e;
+  gr_reach *r = gr_reach_new(s->lo, s->period, LREACH_CAP * f->L, 0.2 * f->herr, 2 * f->herr, m, sn, sn + 3 * nv, foot_cb, (void *)f,
+                             s->threads, &e);
+  free(sn);
+  return r;
+}
+
+/* The slot's table, made by the first caller (the others wait). */
+static const gr_reach *lreach_get(lreach_slot *s) {
+  if (__atomic_load_n(&s->state, __ATOMIC_ACQUIRE)) return s->r;
+  pthread_mutex_lock(&s->mu);
+  if (!s->state) {
+    s->r = lreach_make(s);
+    __atomic_store_n(&s->state, 1, __ATOMIC_RELEASE);
+  }
+  pthread_mutex_unlock(&s->mu);
+  return s->r;
+}
+
+/* Below what distance from its foot q (a point of H) the point p, at
+ * distance d, keeps q as its closest point: H's reach, or beyond it the
+ * larger of that and the local reach at q on p's side (reach.h). */
+static double reach_for(const offset *f, const double p[3], const double q[3], double d) {
+  if (d < f->reach || !f->lrs) return f->reach;
+  const gr_reach *r = lreach_get(f->lrs);
+  double g[3];
+  gr_err e;
+  if (!r || gr_field_grad(f->phi, 1, &q[0], &q[1], &q[2], &g[0], &g[1], &g[2], &e)) return f->reach;
+  double c[3] = {q[0] - f->shift[0], q[1] - f->shift[1], q[2] - f->shift[2]};
+  double side = (p[0] - q[0]) * g[0] + (p[1] - q[1]) * g[1] + (p[2] - q[2]) * g[2];
+  return fmax(f->reach, gr_reach_at(r, c, side > 0 ? 1 : -1));
+}
+
+/* A slot for H's local reach (made later, when needed). */
+static int lreach_slot_new(offset *f, const gr_offset_opts *o, gr_err *e) {
+  lreach_slot *s = calloc(1, sizeof *s);
+  if (!s) return gr_fail(e, GR_EMEM, "out of memory");
+  pthread_mutex_init(&s->mu, NULL);
+  s->owner = f;
+  memcpy(s->lo, o->box_lo, sizeof s->lo);
+  memcpy(s->period, o->cell, sizeof s->period);
+  s->threads = gr_field_threadsafe(f->phi) ? o->threads : 1;
+  f->lrs = s;
+  return GR_OK;
 }
 
 /* How far H's mesh lies off phi = 0: |phi| / |grad phi| at each triangle's
@@ -1029,6 +1130,8 @@ static int offset_checks(offset *f, const gr_offset_opts *o, const offset *lk, d
   if (rc == GR_OK) {
     offset_touch_warning(f, o, lk != NULL, nv, vx, vy, vz, t);
     f->reach = lk ? lk->reach : (o->mode == GR_DIST_EXACT ? reach_estimate(f, o, nv, vx, vy, vz) : 0);
+    f->lrs = lk ? lk->lrs : NULL;
+    if (!lk && o->periodic && o->mode == GR_DIST_EXACT) rc = lreach_slot_new(f, o, e);
   }
   free(buf);
   return rc;

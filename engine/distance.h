@@ -45,6 +45,9 @@ typedef struct gr_offset_opts {
                                  taken; the inside pass gets ratio * T) */
   int threads;                /* threads for meshing H and its checks (<= 1: the calling
                                  thread only); the field is the same either way */
+  int periodic;               /* 1: phi repeats with period cell along each axis (a TPMS):
+                                 exact mode keeps a table of H's local reach over one
+                                 period (reach.h), shared with fields made `like` this */
 } gr_offset_opts;
 gr_offset_opts gr_offset_defaults(void);
 
@@ -92,6 +95,11 @@ int gr_offset_values_band(const gr_field *f, size_t n, const double *q, const do
 /* H's error bound of offset field f (half a mesh spacing, mm), or -1 when
  * f is not one. */
 double gr_offset_herr(const gr_field *f);
+/* Below what distance from q (a point of H) the point p keeps q as its
+ * closest point (mm): H's reach, or the larger local reach at q on p's side
+ * (fields made with `periodic`, and those sharing their H; the table is
+ * made on first use). -1 when f is not an offset field. */
+double gr_offset_keeps_foot(const gr_field *f, const double p[3], const double q[3]);
 /* A lower bound of offset field f's value at a point at least dlb (mm) from
  * its surface, for a sheet: dlb less its thickness when that is constant
  * (its value at H's vertices), or less the graded thickness's bound (the largest T over H's vertices with a 20 %

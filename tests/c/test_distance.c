@@ -940,6 +940,77 @@ TEST(value_floor_bounds) {
   gr_field_free(phi);
 }
 
+/* The local reach (reach.h) claims that a point p = q + t n of a periodic
+ * surface's offset field keeps q as its closest point for every t below it.
+ * Checked at the edge of that claim: at random points q of H (both sides,
+ * P, gyroid, diamond, iwp; cell 2 mm, res 40, as the templates' canonical
+ * fields are made), p at 0.999 times the claimed distance; the distance of p
+ * to H found by a whole-mesh search (an offset field without the table, no
+ * hint) may not be shorter than |p - q|. The claim must also exceed H's
+ * global reach at most of the points (else the table serves nothing). */
+TEST(local_reach_bound) {
+  static const char *const names[] = {"primitive", "gyroid", "diamond", "iwp"};
+  for (int s = 0; s < 4; s++) {
+    gr_err e;
+    gr_field *phi = gr_field_tpms(names[s], 2, NULL, 0, &e), *g[2] = {NULL, NULL};
+    CHECK(phi != NULL, "%s", e.msg);
+    for (int k = 0; k < 2 && phi; k++) {
+      gr_offset_opts o = gr_offset_defaults();
+      o.surface = phi;
+      o.box_hi[0] = o.box_hi[1] = o.box_hi[2] = 2;
+      o.margin = 1.5;
+      o.thickness = 0;
+      o.periodic = k == 0;
+      o.threads = 2;
+      g[k] = gr_offset_field_new(&o, &e);
+      CHECK(g[k] != NULL, "%s: %s", names[s], e.msg);
+    }
+    unsigned long long st = 99 + s;
+    int tried = 0, gained = 0, bad = 0;
+    double global = INFINITY, worst = 0, most = 0;
+    for (int i = 0; i < 600 && g[0] && g[1]; i++) {
+      /* q: where a random segment crosses H, bisected */
+      double a[3], b[3], fa, fb;
+      for (int k = 0; k < 3; k++) a[k] = 2 * rnd(&st), b[k] = a[k] + 0.6 * (rnd(&st) - 0.5);
+      fa = eval1(phi, a[0], a[1], a[2]);
+      fb = eval1(phi, b[0], b[1], b[2]);
+      if ((fa < 0) == (fb < 0)) continue;
+      for (int it = 0; it < 60; it++) {
+        double m[3] = {0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1]), 0.5 * (a[2] + b[2])};
+        double fm = eval1(phi, m[0], m[1], m[2]);
+        if ((fm < 0) == (fa < 0)) memcpy(a, m, sizeof m), fa = fm; else memcpy(b, m, sizeof m);
+      }
+      double n[3];
+      if (gr_field_grad(phi, 1, &a[0], &a[1], &a[2], &n[0], &n[1], &n[2], &e)) continue;
+      double nn = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+      for (int k = 0; k < 3; k++) n[k] /= nn;
+      for (int side = -1; side <= 1; side += 2) {
+        double p[3], v, hint[3] = {NAN, NAN, NAN};
+        for (int k = 0; k < 3; k++) p[k] = a[k] + side * 0.01 * n[k];
+        double R = gr_offset_keeps_foot(g[0], p, a), R0 = gr_offset_keeps_foot(g[1], p, a);
+        global = fmin(global, R0);
+        tried++;
+        if (R > R0) gained++;
+        most = fmax(most, R);
+        for (int k = 0; k < 3; k++) p[k] = a[k] + side * 0.999 * R * n[k];
+        if (gr_offset_eval_near(g[1], 1, &p[0], &p[1], &p[2], hint, 1, &v, NULL, &e)) { CHECK(0, "%s", e.msg); continue; }
+        double short_by = 0.999 * R - v; /* thickness 0: the value is the distance */
+        worst = fmax(worst, short_by);
+        if (short_by > 1e-6) bad++;
+      }
+    }
+    printf("  info: %-9s local reach at %d points: above the global %.3f mm at %d, up to %.3f mm; whole-mesh "
+           "distance below the claim by at most %.3g um\n", names[s], tried, global, gained, most, worst * 1e3);
+    CHECK(tried >= 100, "%s: %d points", names[s], tried);
+    CHECK(bad == 0, "%s: %d of %d points have a nearer patch than the local reach allows (by up to %.3g um)", names[s],
+          bad, tried, worst * 1e3);
+    CHECK(gained > tried / 2, "%s: the local reach exceeds the global one at %d of %d points only", names[s], gained, tried);
+    gr_field_free(g[0]);
+    gr_field_free(g[1]);
+    gr_field_free(phi);
+  }
+}
+
 int main(void) {
   RUN(triangle_vs_sampling);
   RUN(bvh_sphere);
@@ -956,5 +1027,6 @@ int main(void) {
   RUN(near_hints_both_patches);
   RUN(model_eval_vs_exact);
   RUN(value_floor_bounds);
+  RUN(local_reach_bound);
   DONE();
 }

@@ -1,0 +1,225 @@
+/* reach.c: the local reach of a periodic surface, see reach.h. */
+#include "reach.h"
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <stdio.h>
+#include "pool.h"
+
+/* Cells per period along the shortest axis; the points of H handed in are
+ * about twice as dense (a mesh at 40 per cell), so every point of H has one
+ * in its cell or a neighbour. */
+#define REACH_CELLS 20
+/* Each sample's t* is a lower bound (an empty ball was found); between
+ * samples t* may dip below them by at most its slope times the distance to
+ * the nearest sample. The slope is measured between nearby samples, and
+ * taken this many times over (a kink of t* between two samples is steeper
+ * than what they show). */
+#define REACH_SLOPE_SAFETY 1
+
+struct gr_reach {
+  double lo[3], g[3]; /* period box origin, cell size (mm) */
+  int n[3];           /* cells per axis */
+  float *v[2];        /* n[0] n[1] n[2] values per side (against, along the normal), mm */
+};
+
+static double dist3(const double a[3], const double b[3]) {
+  return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+/* 1 when s is (within eps) the closest point of s + sg r n, 0 when not, -1
+ * when no closest point was found; x: the closest point. */
+static int keeps(gr_reach_foot foot, void *ud, const double s[3], const double n[3], int sg, double r, double eps,
+                 double x[3]) {
+  double c[3] = {s[0] + sg * r * n[0], s[1] + sg * r * n[1], s[2] + sg * r * n[2]};
+  if (!foot(ud, c, x)) return -1;
+  return dist3(x, s) < eps;
+}
+
+/* Bisection for the cut distance (reach.h). */
+double gr_reach_bisect(gr_reach_foot foot, void *ud, const double s[3], const double n[3], int sg, double top,
+                       double tol, int steps, double eps) {
+  double lo = 0, hi = top, x[3];
+  for (int it = 0; it < steps && hi - lo > tol; it++) {
+    double mid = 0.5 * (lo + hi);
+    if (keeps(foot, ud, s, n, sg, mid, eps, x) > 0) lo = mid;
+    else hi = mid;
+  }
+  if (hi < top) return lo;
+  return keeps(foot, ud, s, n, sg, top, eps, x) > 0 ? top : lo;
+}
+
+
+/* A shrinking ball: the ball tangent at s of radius r (its centre along
+ * sg n) is empty when s is the closest point of its centre; otherwise the
+ * closest point x found lies inside it, and the ball tangent at s through x
+ * is the next, a little smaller (1 %) so that x is outside it. Where t* is
+ * set by another patch this ends in two or three steps; where it is set by
+ * the curvature (a focal point), the ball through a nearby x is the
+ * osculating one. Unsettled after 8 steps: bisection below the last. */
+double gr_reach_cut(gr_reach_foot foot, void *ud, const double s[3], const double n[3], int sg, double cap,
+                    double eps) {
+  double r = cap, x[3];
+  for (int it = 0; it < 8; it++) {
+    int k = keeps(foot, ud, s, n, sg, r, eps, x);
+    if (k < 0) return 0;
+    if (k) return r;
+    double dx[3] = {x[0] - s[0], x[1] - s[1], x[2] - s[2]};
+    double h = sg * (dx[0] * n[0] + dx[1] * n[1] + dx[2] * n[2]);
+    double r2 = h > 0 ? (dx[0] * dx[0] + dx[1] * dx[1] + dx[2] * dx[2]) / (2 * h) : 0;
+    r = fmin(0.99 * r2, 0.99 * r);
+    if (!(r > eps)) return 0;
+  }
+  return gr_reach_bisect(foot, ud, s, n, sg, r, 0, 8, eps);
+}
+
+typedef struct cut_job {
+  const double *s, *nrm;
+  size_t nv;
+  double cap, eps;
+  gr_reach_foot foot;
+  void *ud;
+  double *t; /* per point and side: t* (2 each: against, along the normal) */
+} cut_job;
+
+enum { CUT_CHUNK = 64 };
+
+static int cut_item(void *ctx, int item, gr_err *e) {
+  (void)e;
+  cut_job *j = ctx;
+  size_t a = (size_t)item * CUT_CHUNK, b = a + CUT_CHUNK < j->nv ? a + CUT_CHUNK : j->nv;
+  for (size_t i = a; i < b; i++) {
+    const double *s = j->s + 3 * i, *n = j->nrm + 3 * i;
+    for (int sd = 0; sd < 2; sd++) j->t[2 * i + sd] = gr_reach_cut(j->foot, j->ud, s, n, 2 * sd - 1, j->cap, j->eps);
+  }
+  return GR_OK;
+}
+
+static size_t cell_of(const gr_reach *r, const double q[3]) {
+  size_t id = 0;
+  for (int a = 2; a >= 0; a--) {
+    double u = (q[a] - r->lo[a]) / r->g[a];
+    long k = (long)floor(u) % r->n[a];
+    if (k < 0) k += r->n[a];
+    id = id * (size_t)r->n[a] + (size_t)k;
+  }
+  return id;
+}
+
+/* The steepest slope of t* (side sd) between two of the nv points s that
+ * are dmin to dmax apart (both known and below the cap; nearer pairs show
+ * only the cut distances' 1 % rounding), via the cells: points sorted
+ * by cell (order, start: nc + 1 offsets), each against those of its cell
+ * and the 26 around it. */
+static double steepest(const gr_reach *r, const double *s, const double *t, size_t nv, int sd, double cap, double dmin,
+                       double dmax, const size_t *order, const size_t *start) {
+  double worst = 0;
+  const int *n = r->n;
+  for (size_t i = 0; i < nv; i++) {
+    if (!(t[2 * i + sd] < cap) || !(t[2 * i + sd] > 0)) continue;
+    const double *si = s + 3 * i;
+    long ci[3];
+    for (int a = 0; a < 3; a++) ci[a] = (long)floor((si[a] - r->lo[a]) / r->g[a]);
+    for (int dk = -1; dk <= 1; dk++)
+      for (int dj = -1; dj <= 1; dj++)
+        for (int di = -1; di <= 1; di++) {
+          long a = ((ci[0] + di) % n[0] + n[0]) % n[0], b = ((ci[1] + dj) % n[1] + n[1]) % n[1];
+          long c = ((ci[2] + dk) % n[2] + n[2]) % n[2];
+          size_t cell = ((size_t)c * n[1] + b) * n[0] + a;
+          for (size_t k = start[cell]; k < start[cell + 1]; k++) {
+            size_t jx = order[k];
+            double d = dist3(si, s + 3 * jx);
+            if (jx == i || !(d <= dmax) || !(d >= dmin) || !(t[2 * jx + sd] < cap) || !(t[2 * jx + sd] > 0)) continue;
+            worst = fmax(worst, fabs(t[2 * i + sd] - t[2 * jx + sd]) / d);
+          }
+        }
+  }
+  return worst;
+}
+
+/* v[cell] = the smallest of cmin over the cell and its 26 neighbours (the
+ * period wraps) less margin, 0 where all are empty (INFINITY). */
+static void dilate(gr_reach *r, const double *cmin, double margin, float *v) {
+  int *n = r->n;
+  for (int k = 0; k < n[2]; k++)
+    for (int j = 0; j < n[1]; j++)
+      for (int i = 0; i < n[0]; i++) {
+        double m = INFINITY;
+        for (int dk = -1; dk <= 1; dk++)
+          for (int dj = -1; dj <= 1; dj++)
+            for (int di = -1; di <= 1; di++) {
+              int a = (i + di + n[0]) % n[0], b = (j + dj + n[1]) % n[1], c = (k + dk + n[2]) % n[2];
+              m = fmin(m, cmin[((size_t)c * n[1] + b) * n[0] + a]);
+            }
+        v[((size_t)k * n[1] + j) * n[0] + i] = isfinite(m) ? (float)fmax(0, m - margin) : 0.f;
+      }
+}
+
+/* Per side: the smallest t* of each cell's points, less the margin for
+ * what t* may lose between a point of H and its nearest sample. */
+static void fill(gr_reach *r, const double *s, const double *t, size_t nv, double cap, double spacing, double *cmin) {
+  size_t nc = (size_t)r->n[0] * r->n[1] * r->n[2];
+  size_t *start = calloc(nc + 2, sizeof *start), *order = malloc((nv + 1) * sizeof *order);
+  for (size_t i = 0; start && order && i < nv; i++) start[cell_of(r, s + 3 * i) + 2]++;
+  for (size_t c = 0; start && order && c < nc; c++) start[c + 2] += start[c + 1];
+  for (size_t i = 0; start && order && i < nv; i++) order[start[cell_of(r, s + 3 * i) + 1]++] = i;
+  for (int sd = 0; sd < 2; sd++) {
+    /* no slope known (out of memory): no margin can be set, no table */
+    double slope = start && order ? steepest(r, s, t, nv, sd, cap, 0.5 * spacing, 2 * spacing, order, start) : INFINITY;
+    if (getenv("GRADUS_DEBUG")) fprintf(stderr, "local reach side %d: steepest slope %.3f\n", sd, slope);
+    for (size_t c = 0; c < nc; c++) cmin[c] = INFINITY;
+    for (size_t i = 0; i < nv; i++) {
+      size_t c = cell_of(r, s + 3 * i);
+      cmin[c] = fmin(cmin[c], t[2 * i + sd]);
+    }
+    dilate(r, cmin, REACH_SLOPE_SAFETY * slope * spacing, r->v[sd]);
+  }
+  free(start);
+  free(order);
+}
+
+gr_reach *gr_reach_new(const double lo[3], const double period[3], double cap, double eps, double spacing, size_t nv,
+                       const double *s, const double *nrm, gr_reach_foot foot, void *ud, int threads, gr_err *e) {
+  double pmin = fmin(period[0], fmin(period[1], period[2]));
+  if (!(pmin > 0) || !(cap > 0)) return gr_fail(e, GR_EARG, "local reach: the period and cap must be > 0"), NULL;
+  gr_reach *r = calloc(1, sizeof *r);
+  double *t = malloc((2 * nv + 1) * sizeof *t), *cmin = NULL;
+  size_t nc = 1;
+  if (r) {
+    for (int a = 0; a < 3; a++) {
+      r->lo[a] = lo[a];
+      r->n[a] = (int)fmax(3, round(REACH_CELLS * period[a] / pmin));
+      r->g[a] = period[a] / r->n[a];
+      nc *= (size_t)r->n[a];
+    }
+    r->v[0] = malloc(2 * nc * sizeof *r->v[0]);
+    r->v[1] = r->v[0] ? r->v[0] + nc : NULL;
+    cmin = malloc(nc * sizeof *cmin);
+  }
+  if (!r || !t || !r->v[0] || !cmin) {
+    free(t);
+    free(cmin);
+    gr_reach_free(r);
+    return gr_fail(e, GR_EMEM, "out of memory"), NULL;
+  }
+  cut_job j = {.s = s, .nrm = nrm, .nv = nv, .cap = cap, .eps = eps, .foot = foot, .ud = ud, .t = t};
+  int rc = gr_pool_for((int)((nv + CUT_CHUNK - 1) / CUT_CHUNK), cut_item, &j, threads, NULL, NULL, "local reach", e);
+  if (rc == GR_OK) fill(r, s, t, nv, cap, spacing, cmin);
+  free(t);
+  free(cmin);
+  if (rc) {
+    gr_reach_free(r);
+    return NULL;
+  }
+  return r;
+}
+
+double gr_reach_at(const gr_reach *r, const double q[3], int side) {
+  return r ? r->v[side > 0][cell_of(r, q)] : 0;
+}
+
+void gr_reach_free(gr_reach *r) {
+  if (!r) return;
+  free(r->v[0]);
+  free(r);
+}
