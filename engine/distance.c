@@ -1030,7 +1030,11 @@ static gr_reach *lreach_make(const lreach_slot *s) {
     if (in && on_surface(f, v, sn + 3 * m, sn + 3 * nv + 3 * m)) m++;
   }
   gr_err e;
-  gr_reach *r = gr_reach_new(s->lo, s->period, LREACH_CAP * f->L, 0.2 * f->herr, 2 * f->herr, m, sn, sn + 3 * nv, foot_cb, (void *)f,
+  /* a point of H lies within mdev of the mesh (measured), a point of a
+   * triangle within its longest edge / sqrt 3 of a vertex (a triangle of
+   * marching cubes lies in one cube of the mesh spacing 2 herr: edges up to
+   * sqrt 3 times that), and the vertices moved by up to mdev onto phi = 0 */
+  gr_reach *r = gr_reach_new(s->lo, s->period, LREACH_CAP * f->L, 0.2 * f->herr, 2 * f->herr + 2 * f->mdev, m, sn, sn + 3 * nv, foot_cb, (void *)f,
                              s->threads, &e);
   free(sn);
   return r;

@@ -6,16 +6,10 @@
 #include <stdio.h>
 #include "pool.h"
 
-/* Cells per period along the shortest axis; the points of H handed in are
- * about twice as dense (a mesh at 40 per cell), so every point of H has one
- * in its cell or a neighbour. */
+/* Cells per period along the shortest axis, at most: a cell is never
+ * smaller than the spacing of the points, so that the nearest point to any
+ * point of H lies in its cell or a neighbour. */
 #define REACH_CELLS 20
-/* Each sample's t* is a lower bound (an empty ball was found); between
- * samples t* may dip below them by at most its slope times the distance to
- * the nearest sample. The slope is measured between nearby samples, and
- * taken this many times over (a kink of t* between two samples is steeper
- * than what they show). */
-#define REACH_SLOPE_SAFETY 1
 
 struct gr_reach {
   double lo[3], g[3]; /* period box origin, cell size (mm) */
@@ -156,7 +150,10 @@ static void dilate(gr_reach *r, const double *cmin, double margin, float *v) {
 }
 
 /* Per side: the smallest t* of each cell's points, less the margin for
- * what t* may lose between a point of H and its nearest sample. */
+ * what t* may lose between a point of H and its nearest sample (within
+ * `spacing`). Each sample's t* is a lower bound (an empty ball was found);
+ * between samples t* may dip below them by at most its slope times that
+ * distance, the slope measured between samples 0.5 to 2 spacings apart. */
 static void fill(gr_reach *r, const double *s, const double *t, size_t nv, double cap, double spacing, double *cmin) {
   size_t nc = (size_t)r->n[0] * r->n[1] * r->n[2];
   size_t *start = calloc(nc + 2, sizeof *start), *order = malloc((nv + 1) * sizeof *order);
@@ -172,7 +169,7 @@ static void fill(gr_reach *r, const double *s, const double *t, size_t nv, doubl
       size_t c = cell_of(r, s + 3 * i);
       cmin[c] = fmin(cmin[c], t[2 * i + sd]);
     }
-    dilate(r, cmin, REACH_SLOPE_SAFETY * slope * spacing, r->v[sd]);
+    dilate(r, cmin, slope * spacing, r->v[sd]);
   }
   free(start);
   free(order);
@@ -181,14 +178,15 @@ static void fill(gr_reach *r, const double *s, const double *t, size_t nv, doubl
 gr_reach *gr_reach_new(const double lo[3], const double period[3], double cap, double eps, double spacing, size_t nv,
                        const double *s, const double *nrm, gr_reach_foot foot, void *ud, int threads, gr_err *e) {
   double pmin = fmin(period[0], fmin(period[1], period[2]));
-  if (!(pmin > 0) || !(cap > 0)) return gr_fail(e, GR_EARG, "local reach: the period and cap must be > 0"), NULL;
+  if (!(pmin > 0) || !(cap > 0) || !(spacing > 0))
+    return gr_fail(e, GR_EARG, "local reach: the period, cap and spacing must be > 0"), NULL;
   gr_reach *r = calloc(1, sizeof *r);
   double *t = malloc((2 * nv + 1) * sizeof *t), *cmin = NULL;
   size_t nc = 1;
   if (r) {
     for (int a = 0; a < 3; a++) {
       r->lo[a] = lo[a];
-      r->n[a] = (int)fmax(3, round(REACH_CELLS * period[a] / pmin));
+      r->n[a] = (int)fmax(3, fmin(round(REACH_CELLS * period[a] / pmin), floor(period[a] / spacing)));
       r->g[a] = period[a] / r->n[a];
       nc *= (size_t)r->n[a];
     }

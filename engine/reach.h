@@ -12,7 +12,8 @@
  *
  * Takes: points of H (on the exact surface) with unit normals, the closest
  * point of H to any point (a callback), one period box. Gives: per cell of a
- * grid over the period (cells of about 1/20 of the period) and per side of
+ * grid over the period (cells of about 1/20 of the period, at least the
+ * points' spacing) and per side of
  * H, SAFETY times the smallest t* (capped) of the points in the cell and
  * its 26 neighbours (wrapped), 0 where no point is near. */
 #ifndef GR_REACH_H
@@ -26,9 +27,10 @@ typedef int (*gr_reach_foot)(void *ud, const double p[3], double q[3]);
 typedef struct gr_reach gr_reach;
 
 /* The table over the period box [lo, lo + period) from nv points s (3 each,
- * on H) with unit normals nrm (3 each); t* measured up to cap (mm); a foot
- * counts as s itself when within eps (mm). Errors: out of memory, a
- * non-positive period or cap. */
+ * on H) with unit normals nrm (3 each), every point of H within `spacing`
+ * (mm) of one of them; t* measured up to cap (mm); a foot counts as s itself
+ * when within eps (mm). Errors: out of memory, a non-positive period, cap
+ * or spacing. */
 gr_reach *gr_reach_new(const double lo[3], const double period[3], double cap, double eps, double spacing, size_t nv,
                        const double *s, const double *nrm, gr_reach_foot foot, void *ud, int threads, gr_err *e);
 /* The lower estimate of t* at a point q of H on the side `side` (+1: along
