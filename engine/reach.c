@@ -100,16 +100,17 @@ static size_t cell_of(const gr_reach *r, const double q[3]) {
   return id;
 }
 
-/* The steepest slope of t* (side sd) between two of the nv points s that
- * are dmin to dmax apart (both known and below the cap; nearer pairs show
- * only the cut distances' 1 % rounding), via the cells: points sorted
- * by cell (order, start: nc + 1 offsets), each against those of its cell
- * and the 26 around it. */
-static double steepest(const gr_reach *r, const double *s, const double *t, size_t nv, int sd, double cap, double dmin,
-                       double dmax, const size_t *order, const size_t *start) {
+/* The steepest slope of t* (side sd) at each of the nv points s, against
+ * the points dmin to dmax from it (both known and below the cap; nearer
+ * pairs show only the cut distances' 1 % rounding), found via the cells
+ * (points sorted by cell: order, start): sl[i], -1 where no pair is; returns
+ * the steepest of all (0 when none). */
+static double slopes(const gr_reach *r, const double *s, const double *t, size_t nv, int sd, double cap, double dmin,
+                     double dmax, const size_t *order, const size_t *start, double *sl) {
   double worst = 0;
   const int *n = r->n;
   for (size_t i = 0; i < nv; i++) {
+    sl[i] = -1;
     if (!(t[2 * i + sd] < cap) || !(t[2 * i + sd] > 0)) continue;
     const double *si = s + 3 * i;
     long ci[3];
@@ -124,55 +125,69 @@ static double steepest(const gr_reach *r, const double *s, const double *t, size
             size_t jx = order[k];
             double d = dist3(si, s + 3 * jx);
             if (jx == i || !(d <= dmax) || !(d >= dmin) || !(t[2 * jx + sd] < cap) || !(t[2 * jx + sd] > 0)) continue;
-            worst = fmax(worst, fabs(t[2 * i + sd] - t[2 * jx + sd]) / d);
+            sl[i] = fmax(sl[i], fabs(t[2 * i + sd] - t[2 * jx + sd]) / d);
           }
         }
+    worst = fmax(worst, sl[i]);
   }
   return worst;
 }
 
 /* v[cell] = the smallest of cmin over the cell and its 26 neighbours (the
- * period wraps) less margin, 0 where all are empty (INFINITY). */
-static void dilate(gr_reach *r, const double *cmin, double margin, float *v) {
+ * period wraps) less the steepest of cslope over them times spacing; 0
+ * where all are empty (cmin INFINITY). */
+static void dilate(gr_reach *r, const double *cmin, const double *cslope, double spacing, float *v) {
   int *n = r->n;
   for (int k = 0; k < n[2]; k++)
     for (int j = 0; j < n[1]; j++)
       for (int i = 0; i < n[0]; i++) {
-        double m = INFINITY;
+        double m = INFINITY, sl = 0;
         for (int dk = -1; dk <= 1; dk++)
           for (int dj = -1; dj <= 1; dj++)
             for (int di = -1; di <= 1; di++) {
               int a = (i + di + n[0]) % n[0], b = (j + dj + n[1]) % n[1], c = (k + dk + n[2]) % n[2];
               m = fmin(m, cmin[((size_t)c * n[1] + b) * n[0] + a]);
+              sl = fmax(sl, cslope[((size_t)c * n[1] + b) * n[0] + a]);
             }
-        v[((size_t)k * n[1] + j) * n[0] + i] = isfinite(m) ? (float)fmax(0, m - margin) : 0.f;
+        v[((size_t)k * n[1] + j) * n[0] + i] = isfinite(m) ? (float)fmax(0, m - sl * spacing) : 0.f;
       }
 }
 
-/* Per side: the smallest t* of each cell's points, less the margin for
- * what t* may lose between a point of H and its nearest sample (within
- * `spacing`). Each sample's t* is a lower bound (an empty ball was found);
- * between samples t* may dip below them by at most its slope times that
- * distance, the slope measured between samples 0.5 to 2 spacings apart. */
-static void fill(gr_reach *r, const double *s, const double *t, size_t nv, double cap, double spacing, double *cmin) {
+/* Per side: the smallest t* near each cell, less the margin for what t*
+ * may lose between a point of H and its nearest sample (within `spacing`).
+ * Each sample's t* is a lower bound (an empty ball was found); between
+ * samples t* may dip below them by at most its slope times that distance,
+ * the slope measured between samples 0.5 to 2 spacings apart, near the cell
+ * (its 27 cells; a sample without such a pair counts with the steepest
+ * slope of all). Out of memory: no table (all 0). */
+static void fill(gr_reach *r, const double *s, const double *t, size_t nv, double cap, double spacing) {
   size_t nc = (size_t)r->n[0] * r->n[1] * r->n[2];
   size_t *start = calloc(nc + 2, sizeof *start), *order = malloc((nv + 1) * sizeof *order);
-  for (size_t i = 0; start && order && i < nv; i++) start[cell_of(r, s + 3 * i) + 2]++;
-  for (size_t c = 0; start && order && c < nc; c++) start[c + 2] += start[c + 1];
-  for (size_t i = 0; start && order && i < nv; i++) order[start[cell_of(r, s + 3 * i) + 1]++] = i;
+  double *sl = malloc((nv + 1) * sizeof *sl), *cmin = malloc(2 * nc * sizeof *cmin);
+  double *cslope = cmin ? cmin + nc : NULL;
+  int ok = start && order && sl && cmin;
+  for (size_t i = 0; ok && i < nv; i++) start[cell_of(r, s + 3 * i) + 2]++;
+  for (size_t c = 0; ok && c < nc; c++) start[c + 2] += start[c + 1];
+  for (size_t i = 0; ok && i < nv; i++) order[start[cell_of(r, s + 3 * i) + 1]++] = i;
   for (int sd = 0; sd < 2; sd++) {
-    /* no slope known (out of memory): no margin can be set, no table */
-    double slope = start && order ? steepest(r, s, t, nv, sd, cap, 0.5 * spacing, 2 * spacing, order, start) : INFINITY;
-    if (getenv("GRADUS_DEBUG")) fprintf(stderr, "local reach side %d: steepest slope %.3f\n", sd, slope);
-    for (size_t c = 0; c < nc; c++) cmin[c] = INFINITY;
+    if (!ok) {
+      memset(r->v[sd], 0, nc * sizeof *r->v[sd]);
+      continue;
+    }
+    double steep = slopes(r, s, t, nv, sd, cap, 0.5 * spacing, 2 * spacing, order, start, sl);
+    if (getenv("GRADUS_DEBUG")) fprintf(stderr, "local reach side %d: steepest slope %.3f\n", sd, steep);
+    for (size_t c = 0; c < nc; c++) cmin[c] = INFINITY, cslope[c] = 0;
     for (size_t i = 0; i < nv; i++) {
       size_t c = cell_of(r, s + 3 * i);
       cmin[c] = fmin(cmin[c], t[2 * i + sd]);
+      cslope[c] = fmax(cslope[c], sl[i] >= 0 ? sl[i] : steep);
     }
-    dilate(r, cmin, slope * spacing, r->v[sd]);
+    dilate(r, cmin, cslope, spacing, r->v[sd]);
   }
   free(start);
   free(order);
+  free(sl);
+  free(cmin);
 }
 
 gr_reach *gr_reach_new(const double lo[3], const double period[3], double cap, double eps, double spacing, size_t nv,
@@ -181,7 +196,7 @@ gr_reach *gr_reach_new(const double lo[3], const double period[3], double cap, d
   if (!(pmin > 0) || !(cap > 0) || !(spacing > 0))
     return gr_fail(e, GR_EARG, "local reach: the period, cap and spacing must be > 0"), NULL;
   gr_reach *r = calloc(1, sizeof *r);
-  double *t = malloc((2 * nv + 1) * sizeof *t), *cmin = NULL;
+  double *t = malloc((2 * nv + 1) * sizeof *t);
   size_t nc = 1;
   if (r) {
     for (int a = 0; a < 3; a++) {
@@ -192,19 +207,16 @@ gr_reach *gr_reach_new(const double lo[3], const double period[3], double cap, d
     }
     r->v[0] = malloc(2 * nc * sizeof *r->v[0]);
     r->v[1] = r->v[0] ? r->v[0] + nc : NULL;
-    cmin = malloc(nc * sizeof *cmin);
   }
-  if (!r || !t || !r->v[0] || !cmin) {
+  if (!r || !t || !r->v[0]) {
     free(t);
-    free(cmin);
     gr_reach_free(r);
     return gr_fail(e, GR_EMEM, "out of memory"), NULL;
   }
   cut_job j = {.s = s, .nrm = nrm, .nv = nv, .cap = cap, .eps = eps, .foot = foot, .ud = ud, .t = t};
   int rc = gr_pool_for((int)((nv + CUT_CHUNK - 1) / CUT_CHUNK), cut_item, &j, threads, NULL, NULL, "local reach", e);
-  if (rc == GR_OK) fill(r, s, t, nv, cap, spacing, cmin);
+  if (rc == GR_OK) fill(r, s, t, nv, cap, spacing);
   free(t);
-  free(cmin);
   if (rc) {
     gr_reach_free(r);
     return NULL;
