@@ -331,7 +331,7 @@ static int exact_newton(const offset *f, const double p[3], double q[3]) {
   return 0;
 }
 
-static double reach_for(const offset *f, const double p[3], const double q[3], double d);
+static double reach_for(const offset *f, const double q[3], double d);
 
 /* Closest point of H to p within maxd, H being the (shared) mesh translated by f->shift. */
 static void closest_h(const offset *f, const double p[3], double maxd, gr_hit *h) {
@@ -376,7 +376,7 @@ static double take_nearer(const offset *f, const double p[3], double q[3], gr_hi
  * of H's reach (it is made when first needed). Returns the distance |p - q|. */
 static double nearest_patch(const offset *f, const double p[3], double q[3], double tol, int away, int local) {
   double d = dist3(p, q);
-  if (d < (local ? reach_for(f, p, q, d) : f->reach)) return d; /* within the reach: no other patch can be nearer */
+  if (d < (local ? reach_for(f, q, d) : f->reach)) return d; /* within the reach: no other patch can be nearer */
   gr_hit c;
   closest_h(f, p, d - tol, &c);
   d = take_nearer(f, p, q, &c);
@@ -621,9 +621,9 @@ int gr_offset_values_band(const gr_field *f_, size_t n, const double *q, const d
   return values_at(f, n, NULL, q, sd, band, out, e);
 }
 
-double gr_offset_keeps_foot(const gr_field *f_, const double p[3], const double q[3]) {
+double gr_offset_keeps_foot(const gr_field *f_, const double q[3]) {
   const offset *f = gr_field_callback_data(f_, offset_eval);
-  return f ? reach_for(f, p, q, INFINITY) : -1;
+  return f ? reach_for(f, q, INFINITY) : -1;
 }
 
 double gr_offset_herr(const gr_field *f_) {
@@ -747,7 +747,7 @@ static int model_foot(const offset *f, const double p[3], const double x[3], dou
       D2 += (q[a] - o[a]) * (q[a] - o[a]);
     }
     *sd = s * sqrt(g2);
-    double d = fabs(*sd), D = sqrt(D2), rho = D / prev, R = reach_for(f, p, q, d);
+    double d = fabs(*sd), D = sqrt(D2), rho = D / prev, R = reach_for(f, q, d);
     if (!(d < R)) return 0;
     if (r > 0 && (D == 0 || (rho < 0.5 && rho * D < 1e-6 * f->L * (1 - rho)))) {
       double dg[3] = {g[0] - gp[0], g[1] - gp[1], g[2] - gp[2]};
@@ -773,7 +773,7 @@ int gr_offset_eval_model(const gr_field *f_, size_t n, const double *x, const do
       const double *c = pred + 3 * (s + i);
       double P[3] = {x[s + i], y[s + i], z[s + i]};
       out[s + i] = NAN;
-      if (f->mode != GR_DIST_EXACT || isnan(c[0]) || !(dist3(P, c) < reach_for(f, P, c, dist3(P, c)))) continue;
+      if (f->mode != GR_DIST_EXACT || isnan(c[0]) || !(dist3(P, c) < reach_for(f, c, dist3(P, c)))) continue;
       int ok = model_foot(f, P, c, q + 3 * k, sd + k, e);
       if (ok < 0) return e->code;
       if (!ok) continue;
@@ -1052,18 +1052,15 @@ static const gr_reach *lreach_get(lreach_slot *s) {
   return s->r;
 }
 
-/* Below what distance from its foot q (a point of H) the point p, at
- * distance d, keeps q as its closest point: H's reach, or beyond it the
- * larger of that and the local reach at q on p's side (reach.h). */
-static double reach_for(const offset *f, const double p[3], const double q[3], double d) {
+/* Below what distance from its foot q (a point of H) a point at distance d
+ * keeps q as its closest point: H's reach, or beyond it the larger of that
+ * and the local reach at q (reach.h). */
+static double reach_for(const offset *f, const double q[3], double d) {
   if (d < f->reach || !f->lrs) return f->reach;
   const gr_reach *r = lreach_get(f->lrs);
-  double g[3];
-  gr_err e;
-  if (!r || gr_field_grad(f->phi, 1, &q[0], &q[1], &q[2], &g[0], &g[1], &g[2], &e)) return f->reach;
+  if (!r) return f->reach;
   double c[3] = {q[0] - f->shift[0], q[1] - f->shift[1], q[2] - f->shift[2]};
-  double side = (p[0] - q[0]) * g[0] + (p[1] - q[1]) * g[1] + (p[2] - q[2]) * g[2];
-  return fmax(f->reach, gr_reach_at(r, c, side > 0 ? 1 : -1));
+  return fmax(f->reach, gr_reach_at(r, c));
 }
 
 /* A slot for H's local reach (made later, when needed). */

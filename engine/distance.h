@@ -95,11 +95,11 @@ int gr_offset_values_band(const gr_field *f, size_t n, const double *q, const do
 /* H's error bound of offset field f (half a mesh spacing, mm), or -1 when
  * f is not one. */
 double gr_offset_herr(const gr_field *f);
-/* Below what distance from q (a point of H) the point p keeps q as its
- * closest point (mm): H's reach, or the larger local reach at q on p's side
- * (fields made with `periodic`, and those sharing their H; the table is
- * made on first use). -1 when f is not an offset field. */
-double gr_offset_keeps_foot(const gr_field *f, const double p[3], const double q[3]);
+/* Below what distance from q (a point of H) a point along q's normal (either
+ * side) keeps q as its closest point (mm): H's reach, or the larger local
+ * reach at q (fields made with `periodic`, and those sharing their H; the
+ * table is made on first use). -1 when f is not an offset field. */
+double gr_offset_keeps_foot(const gr_field *f, const double q[3]);
 /* A lower bound of offset field f's value at a point at least dlb (mm) from
  * its surface, for a sheet: dlb less its thickness when that is constant
  * (its value at H's vertices), or less the graded thickness's bound (the largest T over H's vertices with a 20 %

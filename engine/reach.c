@@ -14,7 +14,7 @@
 struct gr_reach {
   double lo[3], g[3]; /* period box origin, cell size (mm) */
   int n[3];           /* cells per axis */
-  float *v[2];        /* n[0] n[1] n[2] values per side (against, along the normal), mm */
+  float *v;           /* n[0] n[1] n[2] values, mm */
 };
 
 static double dist3(const double a[3], const double b[3]) {
@@ -73,7 +73,7 @@ typedef struct cut_job {
   double cap, eps;
   gr_reach_foot foot;
   void *ud;
-  double *t; /* per point and side: t* (2 each: against, along the normal) */
+  double *t; /* per point: the smaller t* of its two sides */
 } cut_job;
 
 enum { CUT_CHUNK = 64 };
@@ -84,7 +84,8 @@ static int cut_item(void *ctx, int item, gr_err *e) {
   size_t a = (size_t)item * CUT_CHUNK, b = a + CUT_CHUNK < j->nv ? a + CUT_CHUNK : j->nv;
   for (size_t i = a; i < b; i++) {
     const double *s = j->s + 3 * i, *n = j->nrm + 3 * i;
-    for (int sd = 0; sd < 2; sd++) j->t[2 * i + sd] = gr_reach_cut(j->foot, j->ud, s, n, 2 * sd - 1, j->cap, j->eps);
+    double t = gr_reach_cut(j->foot, j->ud, s, n, 1, j->cap, j->eps);
+    j->t[i] = t > 0 ? fmin(t, gr_reach_cut(j->foot, j->ud, s, n, -1, t, j->eps)) : 0;
   }
   return GR_OK;
 }
@@ -100,18 +101,18 @@ static size_t cell_of(const gr_reach *r, const double q[3]) {
   return id;
 }
 
-/* The steepest slope of t* (side sd) at each of the nv points s, against
+/* The steepest slope of t* at each of the nv points s, against
  * the points dmin to dmax from it (both known and below the cap; nearer
  * pairs show only the cut distances' 1 % rounding), found via the cells
  * (points sorted by cell: order, start): sl[i], -1 where no pair is; returns
  * the steepest of all (0 when none). */
-static double slopes(const gr_reach *r, const double *s, const double *t, size_t nv, int sd, double cap, double dmin,
+static double slopes(const gr_reach *r, const double *s, const double *t, size_t nv, double cap, double dmin,
                      double dmax, const size_t *order, const size_t *start, double *sl) {
   double worst = 0;
   const int *n = r->n;
   for (size_t i = 0; i < nv; i++) {
     sl[i] = -1;
-    if (!(t[2 * i + sd] < cap) || !(t[2 * i + sd] > 0)) continue;
+    if (!(t[i] < cap) || !(t[i] > 0)) continue;
     const double *si = s + 3 * i;
     long ci[3];
     for (int a = 0; a < 3; a++) ci[a] = (long)floor((si[a] - r->lo[a]) / r->g[a]);
@@ -124,8 +125,8 @@ static double slopes(const gr_reach *r, const double *s, const double *t, size_t
           for (size_t k = start[cell]; k < start[cell + 1]; k++) {
             size_t jx = order[k];
             double d = dist3(si, s + 3 * jx);
-            if (jx == i || !(d <= dmax) || !(d >= dmin) || !(t[2 * jx + sd] < cap) || !(t[2 * jx + sd] > 0)) continue;
-            sl[i] = fmax(sl[i], fabs(t[2 * i + sd] - t[2 * jx + sd]) / d);
+            if (jx == i || !(d <= dmax) || !(d >= dmin) || !(t[jx] < cap) || !(t[jx] > 0)) continue;
+            sl[i] = fmax(sl[i], fabs(t[i] - t[jx]) / d);
           }
         }
     worst = fmax(worst, sl[i]);
@@ -153,7 +154,7 @@ static void dilate(gr_reach *r, const double *cmin, const double *cslope, double
       }
 }
 
-/* Per side: the smallest t* near each cell, less the margin for what t*
+/* The smallest t* near each cell, less the margin for what t*
  * may lose between a point of H and its nearest sample (within `spacing`).
  * Each sample's t* is a lower bound (an empty ball was found); between
  * samples t* may dip below them by at most its slope times that distance,
@@ -169,20 +170,18 @@ static void fill(gr_reach *r, const double *s, const double *t, size_t nv, doubl
   for (size_t i = 0; ok && i < nv; i++) start[cell_of(r, s + 3 * i) + 2]++;
   for (size_t c = 0; ok && c < nc; c++) start[c + 2] += start[c + 1];
   for (size_t i = 0; ok && i < nv; i++) order[start[cell_of(r, s + 3 * i) + 1]++] = i;
-  for (int sd = 0; sd < 2; sd++) {
-    if (!ok) {
-      memset(r->v[sd], 0, nc * sizeof *r->v[sd]);
-      continue;
-    }
-    double steep = slopes(r, s, t, nv, sd, cap, 0.5 * spacing, 2 * spacing, order, start, sl);
-    if (getenv("GRADUS_DEBUG")) fprintf(stderr, "local reach side %d: steepest slope %.3f\n", sd, steep);
+  if (ok) {
+    double steep = slopes(r, s, t, nv, cap, 0.5 * spacing, 2 * spacing, order, start, sl);
+    if (getenv("GRADUS_DEBUG")) fprintf(stderr, "local reach: steepest slope %.3f\n", steep);
     for (size_t c = 0; c < nc; c++) cmin[c] = INFINITY, cslope[c] = 0;
     for (size_t i = 0; i < nv; i++) {
       size_t c = cell_of(r, s + 3 * i);
-      cmin[c] = fmin(cmin[c], t[2 * i + sd]);
+      cmin[c] = fmin(cmin[c], t[i]);
       cslope[c] = fmax(cslope[c], sl[i] >= 0 ? sl[i] : steep);
     }
-    dilate(r, cmin, cslope, spacing, r->v[sd]);
+    dilate(r, cmin, cslope, spacing, r->v);
+  } else {
+    memset(r->v, 0, nc * sizeof *r->v);
   }
   free(start);
   free(order);
@@ -196,7 +195,7 @@ gr_reach *gr_reach_new(const double lo[3], const double period[3], double cap, d
   if (!(pmin > 0) || !(cap > 0) || !(spacing > 0))
     return gr_fail(e, GR_EARG, "local reach: the period, cap and spacing must be > 0"), NULL;
   gr_reach *r = calloc(1, sizeof *r);
-  double *t = malloc((2 * nv + 1) * sizeof *t);
+  double *t = malloc((nv + 1) * sizeof *t);
   size_t nc = 1;
   if (r) {
     for (int a = 0; a < 3; a++) {
@@ -205,10 +204,9 @@ gr_reach *gr_reach_new(const double lo[3], const double period[3], double cap, d
       r->g[a] = period[a] / r->n[a];
       nc *= (size_t)r->n[a];
     }
-    r->v[0] = malloc(2 * nc * sizeof *r->v[0]);
-    r->v[1] = r->v[0] ? r->v[0] + nc : NULL;
+    r->v = malloc(nc * sizeof *r->v);
   }
-  if (!r || !t || !r->v[0]) {
+  if (!r || !t || !r->v) {
     free(t);
     gr_reach_free(r);
     return gr_fail(e, GR_EMEM, "out of memory"), NULL;
@@ -224,12 +222,12 @@ gr_reach *gr_reach_new(const double lo[3], const double period[3], double cap, d
   return r;
 }
 
-double gr_reach_at(const gr_reach *r, const double q[3], int side) {
-  return r ? r->v[side > 0][cell_of(r, q)] : 0;
+double gr_reach_at(const gr_reach *r, const double q[3]) {
+  return r ? r->v[cell_of(r, q)] : 0;
 }
 
 void gr_reach_free(gr_reach *r) {
   if (!r) return;
-  free(r->v[0]);
+  free(r->v);
   free(r);
 }

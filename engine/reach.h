@@ -13,9 +13,9 @@
  * Takes: points of H (on the exact surface) with unit normals, the closest
  * point of H to any point (a callback), one period box. Gives: per cell of a
  * grid over the period (cells of about 1/20 of the period, at least the
- * points' spacing) and per side of
- * H, SAFETY times the smallest t* (capped) of the points in the cell and
- * its 26 neighbours (wrapped), 0 where no point is near. */
+ * points' spacing), the smallest t* (either side, capped) of the points in
+ * the cell and its 26 neighbours (wrapped) less a margin for what t* may
+ * lose between samples (reach.c), 0 where no point is near. */
 #ifndef GR_REACH_H
 #define GR_REACH_H
 #include "common.h"
@@ -33,9 +33,9 @@ typedef struct gr_reach gr_reach;
  * or spacing. */
 gr_reach *gr_reach_new(const double lo[3], const double period[3], double cap, double eps, double spacing, size_t nv,
                        const double *s, const double *nrm, gr_reach_foot foot, void *ud, int threads, gr_err *e);
-/* The lower estimate of t* at a point q of H on the side `side` (+1: along
- * the normals given, -1: against them) (mm; 0: none known). */
-double gr_reach_at(const gr_reach *r, const double q[3], int side);
+/* The lower estimate of t* at a point q of H, either side (mm; 0: none
+ * known). */
+double gr_reach_at(const gr_reach *r, const double q[3]);
 /* The cut distance t* of the point s of H with unit normal n, on the side
  * sg (+1 along n, -1 against), up to cap: the largest r (within 1 % or
  * eps) for which s is the closest point of s + sg r n. 0 when unknown. */

@@ -986,8 +986,7 @@ TEST(local_reach_bound) {
       for (int k = 0; k < 3; k++) n[k] /= nn;
       for (int side = -1; side <= 1; side += 2) {
         double p[3], v, hint[3] = {NAN, NAN, NAN};
-        for (int k = 0; k < 3; k++) p[k] = a[k] + side * 0.01 * n[k];
-        double R = gr_offset_keeps_foot(g[0], p, a), R0 = gr_offset_keeps_foot(g[1], p, a);
+        double R = gr_offset_keeps_foot(g[0], a), R0 = gr_offset_keeps_foot(g[1], a);
         global = fmin(global, R0);
         tried++;
         if (R > R0) gained++;
