@@ -773,7 +773,9 @@ int gr_offset_eval_model(const gr_field *f_, size_t n, const double *x, const do
       const double *c = pred + 3 * (s + i);
       double P[3] = {x[s + i], y[s + i], z[s + i]};
       out[s + i] = NAN;
-      if (f->mode != GR_DIST_EXACT || isnan(c[0]) || !(dist3(P, c) < reach_for(f, c, dist3(P, c)))) continue;
+      if (f->mode != GR_DIST_EXACT || isnan(c[0])) continue;
+      double dc = dist3(P, c);
+      if (!(dc < reach_for(f, c, dc))) continue;
       int ok = model_foot(f, P, c, q + 3 * k, sd + k, e);
       if (ok < 0) return e->code;
       if (!ok) continue;
@@ -1034,8 +1036,9 @@ static gr_reach *lreach_make(const lreach_slot *s) {
    * triangle within its longest edge / sqrt 3 of a vertex (a triangle of
    * marching cubes lies in one cube of the mesh spacing 2 herr: edges up to
    * sqrt 3 times that), and the vertices moved by up to mdev onto phi = 0 */
-  gr_reach *r = gr_reach_new(s->lo, s->period, LREACH_CAP * f->L, 0.2 * f->herr, 2 * f->herr + 2 * f->mdev, m, sn, sn + 3 * nv, foot_cb, (void *)f,
-                             s->threads, &e);
+  double spacing = 2 * f->herr + 2 * f->mdev;
+  gr_reach *r = gr_reach_new(s->lo, s->period, LREACH_CAP * f->L, 0.2 * f->herr, spacing, m, sn, sn + 3 * nv, foot_cb,
+                             (void *)f, s->threads, &e);
   free(sn);
   return r;
 }
