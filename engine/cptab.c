@@ -46,9 +46,9 @@ gr_cptab *gr_cptab_new(const double cell[3], double h, double margin, const gr_f
   size_t np = (size_t)t->P[0] * t->P[1] * nl;
   t->q = malloc(3 * np * sizeof *t->q);
   t->sd = malloc(np * sizeof *t->sd);
-  t->st = calloc(np, 1);
-  t->sq = malloc(3 * np * sizeof *t->sq);
-  t->ssd = malloc(np * sizeof *t->ssd);
+  t->st = calloc(2 * np, 1);
+  t->sq = malloc(6 * np * sizeof *t->sq);
+  t->ssd = malloc(2 * np * sizeof *t->ssd);
   if (!t->q || !t->sd || !t->st || !t->sq || !t->ssd) {
     gr_cptab_free(t);
     return gr_fail(e, GR_EMEM, "out of memory"), NULL;
@@ -312,9 +312,10 @@ static int cut_fn(void *ud_, size_t n, const double *x, const double *y, double 
 /* The strict check of table node k of layer q (gr_offset_strict, in the
  * table's own frame, so that every member gets the same answer whichever
  * asks first): made once and kept; a member that finds it being made by
- * another thread makes it too, without keeping it. */
-static int strict_node(const gr_cptab *t, int q, size_t k, double qk[3], double *sdk, gr_err *e) {
-  size_t np = (size_t)t->P[0] * t->P[1], i = np * q + k;
+ * another thread makes it too, without keeping it. With `local` (a member
+ * that uses H's local reach) the check may use it, and is kept apart. */
+static int strict_node(const gr_cptab *t, int q, size_t k, int local, double qk[3], double *sdk, gr_err *e) {
+  size_t np = (size_t)t->P[0] * t->P[1], i = np * q + k + (local ? np * t->nl : 0), j = np * q + k;
   if (__atomic_load_n(&t->st[i], __ATOMIC_ACQUIRE) == 2) {
     memcpy(qk, t->sq + 3 * i, 3 * sizeof *qk);
     *sdk = t->ssd[i];
@@ -323,9 +324,9 @@ static int strict_node(const gr_cptab *t, int q, size_t k, double qk[3], double 
   unsigned char zero = 0;
   int mine = __atomic_compare_exchange_n(&t->st[i], &zero, 1, 0, __ATOMIC_ACQ_REL, __ATOMIC_ACQUIRE);
   double p[3] = {t->lo[0] + (double)(k % t->P[0]) * t->h, t->lo[1] + (double)(k / t->P[0]) * t->h, t->z0 + q * t->t};
-  memcpy(qk, t->q + 3 * i, 3 * sizeof *qk);
-  *sdk = t->sd[i];
-  int rc = gr_offset_strict(t->field, p, qk, sdk, e);
+  memcpy(qk, t->q + 3 * j, 3 * sizeof *qk);
+  *sdk = t->sd[j];
+  int rc = gr_offset_strict(t->field, p, qk, sdk, local, e);
   if (rc || !mine) return rc;
   memcpy(t->sq + 3 * i, qk, 3 * sizeof *qk);
   t->ssd[i] = *sdk;
@@ -362,6 +363,7 @@ static int node_values(const gr_cptab *t, int q, const gr_field *f, int cut, dou
                        const double sh[3], double *Q, double *sd, double *v, gr_err *e) {
   double tmax = gr_offset_max_thickness(f), herr = gr_offset_herr(f);
   double band = !cut && tmax >= 0 ? tmax + FAR_CELLS * h + 2 * herr : INFINITY;
+  int local = gr_offset_uses_local_reach(f);
   int rc = gr_offset_values_band(f, nn, Q, sd, band, v, e);
   /* the table's closest points may be up to 2 herr too far (its tolerance,
    * H's error): where that could decide the sign, the strict check. (A
@@ -374,7 +376,7 @@ static int node_values(const gr_cptab *t, int q, const gr_field *f, int cut, dou
     double qk[3], sdk, off[3];
     size_t k;
     node_shift(t, nx, sh, n, &k, off);
-    if ((rc = strict_node(t, q, k, qk, &sdk, e))) break;
+    if ((rc = strict_node(t, q, k, local, qk, &sdk, e))) break;
     if (sdk == sd[n]) continue;
     for (int a = 0; a < 3; a++) Q[3 * n + a] = qk[a] + off[a];
     sd[n] = sdk;

@@ -29,7 +29,10 @@ typedef struct gr_cptab {
   double *q, *sd;        /* per template layer, Px*Py nodes: closest point, signed distance */
   /* the strict check of a node's closest point (gr_offset_strict: it does
    * not depend on T), made once for the group when a member first needs
-   * it: st 0 not made, 1 being made, 2 made (atomic); sq, ssd its result */
+   * it: st 0 not made, 1 being made, 2 made (atomic); sq, ssd its result.
+   * Twice over: without H's local reach (nodes 0..N-1) and with it (N..2N-1),
+   * for members that use it (gr_offset_uses_local_reach), so that a
+   * member's answer does not depend on which member asked first. */
   unsigned char *st;
   double *sq, *ssd;
 } gr_cptab;

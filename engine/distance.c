@@ -43,6 +43,7 @@ typedef struct offset {
   double reach;       /* below this distance a local closest point is the closest (mm) */
   lreach_slot *lrs;   /* H's local reach, made when first needed (periodic H), or NULL;
                          owned unless `like` */
+  int lreach_on;      /* whether this field uses lrs (lreach_wanted) */
   double mdev;        /* measured: how far H's mesh lies off phi = 0 (mm, exact mode) */
   gr_field *like;     /* the offset field whose H and BVH are shared, or NULL */
   gr_dtable *dens;    /* density -> T table, or NULL */
@@ -57,8 +58,8 @@ typedef struct offset {
 } offset;
 
 /* H's local reach (reach.h), made when first needed: by the first point
- * beyond the global reach that a field sharing H evaluates (thin sheets
- * never need it). Made once, under the mutex, always from the same H and
+ * beyond the global reach that a field sharing H and using the table
+ * (lreach_wanted: thin sheets do not) evaluates. Made once, under the mutex, always from the same H and
  * options: the same table whichever thread or voxel asks first. */
 struct lreach_slot {
   pthread_mutex_t mu;
@@ -332,6 +333,7 @@ static int exact_newton(const offset *f, const double p[3], double q[3]) {
 }
 
 static double reach_for(const offset *f, const double q[3], double d);
+static double reach_local(const offset *f, const double q[3]);
 
 /* Closest point of H to p within maxd, H being the (shared) mesh translated by f->shift. */
 static void closest_h(const offset *f, const double p[3], double maxd, gr_hit *h) {
@@ -376,7 +378,8 @@ static double take_nearer(const offset *f, const double p[3], double q[3], gr_hi
  * of H's reach (it is made when first needed). Returns the distance |p - q|. */
 static double nearest_patch(const offset *f, const double p[3], double q[3], double tol, int away, int local) {
   double d = dist3(p, q);
-  if (d < (local ? reach_for(f, q, d) : f->reach)) return d; /* within the reach: no other patch can be nearer */
+  /* within the reach: no other patch can be nearer */
+  if (d < f->reach || (local && f->lrs && d < reach_local(f, q))) return d;
   gr_hit c;
   closest_h(f, p, d - tol, &c);
   d = take_nearer(f, p, q, &c);
@@ -462,7 +465,7 @@ static int offset_eval(void *ud, size_t n, const double *x, const double *y, con
         double p[3] = {x[s + i], y[s + i], z[s + i]}, qq[3] = {qx[q], qy[q], qz[q]};
         __atomic_fetch_add(&f->nrefine, 1, __ATOMIC_RELAXED);
         exact_refine(f, p, qq);
-        dd[q] = nearest_patch(f, p, qq, PATCH_TOL, 1, 1); /* the mesh may pick the farther of two patches */
+        dd[q] = nearest_patch(f, p, qq, PATCH_TOL, 1, f->lreach_on); /* the mesh may pick the farther of two patches */
         qx[q] = qq[0]; qy[q] = qq[1]; qz[q] = qq[2];
         rx[nr] = qq[0]; ry[nr] = qq[1]; rz[nr] = qq[2];
         rpx[nr] = p[0]; rpy[nr] = p[1]; rpz[nr] = p[2];
@@ -623,7 +626,13 @@ int gr_offset_values_band(const gr_field *f_, size_t n, const double *q, const d
 
 double gr_offset_keeps_foot(const gr_field *f_, const double q[3]) {
   const offset *f = gr_field_callback_data(f_, offset_eval);
-  return f ? reach_for(f, q, INFINITY) : -1;
+  if (!f) return -1;
+  return f->lrs ? reach_local(f, q) : f->reach; /* the table whatever the field's thickness */
+}
+
+int gr_offset_uses_local_reach(const gr_field *f_) {
+  const offset *f = gr_field_callback_data(f_, offset_eval);
+  return f && f->lreach_on;
 }
 
 double gr_offset_herr(const gr_field *f_) {
@@ -645,11 +654,11 @@ double gr_offset_value_floor(const gr_field *f_, double dlb) {
   return dlb - (expr_constant(f->t) && expr_constant(f->tin) && !f->tfield ? f->tmax : f->maxt);
 }
 
-int gr_offset_strict(const gr_field *f_, const double p[3], double q[3], double *sd, gr_err *e) {
+int gr_offset_strict(const gr_field *f_, const double p[3], double q[3], double *sd, int local, gr_err *e) {
   const offset *f = gr_field_callback_data(f_, offset_eval);
   if (!f) return gr_fail(e, GR_EARG, "closest points need an offset field");
   if (f->mode != GR_DIST_EXACT || isnan(q[0])) return GR_OK;
-  double d = fabs(*sd), d2 = nearest_patch(f, p, q, PATCH_TOL, 1, 1);
+  double d = fabs(*sd), d2 = nearest_patch(f, p, q, PATCH_TOL, 1, local);
   if (d2 < d) *sd = *sd < 0 ? -d2 : d2;
   return GR_OK;
 }
@@ -689,7 +698,7 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
         /* the hints come from grid nodes whose own closest points were
          * checked strictly near zero (gr_offset_values): across the medial
          * surface they lie on both patches, so no search away from them */
-        d = nearest_patch(f, p, qi, PATCH_TOL, 0, 1);
+        d = nearest_patch(f, p, qi, PATCH_TOL, 0, f->lreach_on);
       } else {
         /* no usable hint: search the mesh */
         gr_hit h;
@@ -1055,15 +1064,30 @@ static const gr_reach *lreach_get(lreach_slot *s) {
   return s->r;
 }
 
-/* Below what distance from its foot q (a point of H) a point at distance d
- * keeps q as its closest point: H's reach, or beyond it the larger of that
- * and the local reach at q (reach.h). */
-static double reach_for(const offset *f, const double q[3], double d) {
-  if (d < f->reach || !f->lrs) return f->reach;
+/* Whether field f uses H's local reach: only when its thickness reaches
+ * H's reach somewhere (tmax >= reach). Thinner walls put few points beyond
+ * the reach (grid nodes and probes near the thickest wall): searching H for
+ * those costs less than making the table (1-1.5 s of CPU per group). The
+ * group's reference field (thickness 0, whose strict checks of the shared
+ * closest points every member reads) never uses it, so those checks do not
+ * depend on which member asks first. Decided per field from its own
+ * thickness: its values are the same whoever else made the table. */
+static int lreach_wanted(const offset *f) { return f->lrs && f->tmax >= f->reach; }
+
+/* The larger of H's reach and its local reach at q (reach.h; the table made
+ * now when it is not yet). */
+static double reach_local(const offset *f, const double q[3]) {
   const gr_reach *r = lreach_get(f->lrs);
   if (!r) return f->reach;
   double c[3] = {q[0] - f->shift[0], q[1] - f->shift[1], q[2] - f->shift[2]};
   return fmax(f->reach, gr_reach_at(r, c));
+}
+
+/* Below what distance from its foot q (a point of H) a point at distance d
+ * keeps q as its closest point: H's reach, or beyond it (for a field that
+ * uses the table) the local reach at q when larger. */
+static double reach_for(const offset *f, const double q[3], double d) {
+  return d < f->reach || !f->lreach_on ? f->reach : reach_local(f, q);
 }
 
 /* A slot for H's local reach (made later, when needed). */
@@ -1185,6 +1209,7 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   if (rc) { offset_free(f); return NULL; }
   f->mdev = lk ? lk->mdev : dj.out;
   f->tmax = maxt;
+  f->lreach_on = lreach_wanted(f);
   f->maxt = 1.2 * maxt + 2 * hmesh;
   f->tnear = 0.5 * maxt;
   f->refine_band = 0.25 * hmesh; /* a quarter mesh spacing: far above H's error */

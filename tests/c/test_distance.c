@@ -657,7 +657,7 @@ TEST(thick_sheet_nearest_patch) {
     for (int i = 0; i < N; i++) {
       double P[3] = {x[i], y[i], z[i]}, s0 = sd[i];
       if (!(fabs(v[i]) < 2 * gr_offset_herr(g))) continue;
-      if (gr_offset_strict(g, P, q + 3 * i, sd + i, &e) ||
+      if (gr_offset_strict(g, P, q + 3 * i, sd + i, gr_offset_uses_local_reach(g), &e) ||
           (sd[i] != s0 && gr_offset_values(g, 1, q + 3 * i, sd + i, v + i, &e))) { CHECK(0, "%s", e.msg); break; }
     }
     for (int i = 0; i < N; i++) worst[pass] = fmax(worst[pass], fmax(fabs(v[i] + 0.28 - truth[i]), fabs(fabs(sd[i]) - truth[i])));
@@ -826,6 +826,16 @@ TEST(near_hints_both_patches) {
   gr_field_free(phi);
 }
 
+/* Options of an offset field of surface phi over the cell [0, 2]^3, H
+ * meshed `margin` beyond it. */
+static gr_offset_opts cell_opts(gr_field *phi, double margin) {
+  gr_offset_opts o = gr_offset_defaults();
+  o.surface = phi;
+  o.box_hi[0] = o.box_hi[1] = o.box_hi[2] = 2;
+  o.margin = margin;
+  return o;
+}
+
 /* The model evaluation (gr_offset_eval_model: a predicted closest point
  * polished by projections onto phi's tangent plane, accepted only where the
  * moves bound the errors) against the exact solve (gr_offset_eval_near from
@@ -847,10 +857,7 @@ TEST(model_eval_vs_exact) {
       gr_field *phi = gr_field_tpms(gr_tpms_name(s), 2, NULL, 0, &e);
       CHECK(phi != NULL, "%s", e.msg);
       if (!phi) continue;
-      gr_offset_opts o = gr_offset_defaults();
-      o.surface = phi;
-      o.box_hi[0] = o.box_hi[1] = o.box_hi[2] = 2;
-      o.margin = 0.2;
+      gr_offset_opts o = cell_opts(phi, 0.2);
       o.kind = kind ? GR_OFFSET_NETWORK : GR_OFFSET_SHEET;
       o.thickness_expr = kind ? "0.1 + 0.03*u" : "0.06 + 0.02*w";
       gr_field *g = gr_offset_field_new(&o, &e);
@@ -955,10 +962,7 @@ TEST(local_reach_bound) {
     gr_field *phi = gr_field_tpms(names[s], 2, NULL, 0, &e), *g[2] = {NULL, NULL};
     CHECK(phi != NULL, "%s", e.msg);
     for (int k = 0; k < 2 && phi; k++) {
-      gr_offset_opts o = gr_offset_defaults();
-      o.surface = phi;
-      o.box_hi[0] = o.box_hi[1] = o.box_hi[2] = 2;
-      o.margin = 1.5;
+      gr_offset_opts o = cell_opts(phi, 1.5);
       o.thickness = 0;
       o.periodic = k == 0;
       o.threads = 2;
@@ -1010,6 +1014,47 @@ TEST(local_reach_bound) {
   }
 }
 
+/* Which fields use H's local reach: members of a periodic group (sharing
+ * the reference's H) whose thickness reaches H's global reach somewhere;
+ * not thinner members, whose few points beyond the reach search H instead
+ * of making the table, and not the reference itself (thickness 0), whose
+ * strict checks every member reads. */
+TEST(local_reach_policy) {
+  gr_err e;
+  gr_field *phi = gr_field_tpms("primitive", 2, NULL, 0, &e);
+  CHECK(phi != NULL, "%s", e.msg);
+  if (!phi) return;
+  gr_offset_opts o = cell_opts(phi, 1.5);
+  o.thickness = 0;
+  o.periodic = 1;
+  o.threads = 2;
+  gr_field *ref = gr_offset_field_new(&o, &e);
+  CHECK(ref != NULL, "%s", e.msg);
+  CHECK(!ref || !gr_offset_uses_local_reach(ref), "the reference (thickness 0) uses the local reach");
+  CHECK(!gr_offset_uses_local_reach(phi), "a field that is no offset field uses the local reach");
+  /* P at 2 mm: H's global reach is about 0.19 mm */
+  const double ts[] = {0.1, 0.15, 0.26};
+  for (int k = 0; k < 3 && ref; k++) {
+    gr_offset_opts m = gr_offset_defaults();
+    m.surface = phi;
+    m.box_lo[0] = 2;
+    m.box_hi[0] = 4;
+    m.box_hi[1] = m.box_hi[2] = 2;
+    m.like = ref;
+    m.like_shift[0] = 2;
+    m.thickness = ts[k];
+    gr_field *f = gr_offset_field_new(&m, &e);
+    CHECK(f != NULL, "T = %g: %s", ts[k], e.msg);
+    if (!f) continue;
+    int want = ts[k] > 0.2;
+    CHECK(gr_offset_uses_local_reach(f) == want, "T = %g mm: uses the local reach %d, expected %d", ts[k],
+          gr_offset_uses_local_reach(f), want);
+    gr_field_free(f);
+  }
+  gr_field_free(ref);
+  gr_field_free(phi);
+}
+
 int main(void) {
   RUN(triangle_vs_sampling);
   RUN(bvh_sphere);
@@ -1027,5 +1072,6 @@ int main(void) {
   RUN(model_eval_vs_exact);
   RUN(value_floor_bounds);
   RUN(local_reach_bound);
+  RUN(local_reach_policy);
   DONE();
 }
