@@ -864,6 +864,14 @@ gr_grid2 *gr_grid2_sample(const gr_field *f, double z, const double lo[2],
   return g;
 }
 
+int gr_field_plane(const gr_field *f, double z, const double lo[2], const double h[2], const int n[2], double *out,
+                   gr_err *e) {
+  if (!f || !lo || !h || !n || !out) return gr_fail(e, GR_EARG, "plane sample: missing argument");
+  if (n[0] < 1 || n[1] < 1) return gr_fail(e, GR_EARG, "plane sample: %d x %d samples", n[0], n[1]);
+  grid_axes a = {2, {n[0], n[1], 1}, {lo[0], lo[1], 0}, {h[0], h[1], 0}, z};
+  return fill_grid(f, &a, (size_t)n[0] * n[1], out, e);
+}
+
 void gr_grid3_free(gr_grid3 *g) {
   if (!g) return;
   free(g->v);

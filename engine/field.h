@@ -147,5 +147,11 @@ gr_grid2 *gr_grid2_sample(const gr_field *f, double z, const double lo[2],
                           const double hi[2], const int n[2], gr_err *e);
 void gr_grid3_free(gr_grid3 *g);
 void gr_grid2_free(gr_grid2 *g);
+/* The n[0] x n[1] samples of the plane at height z at (lo[0] + i*h[0],
+ * lo[1] + j*h[1]) into out[i + n[0]*j] (caller's memory): the values
+ * gr_field_eval gives at those points, bit for bit; a TPMS from one sine and
+ * cosine per axis sample instead of three pairs per point. */
+int gr_field_plane(const gr_field *f, double z, const double lo[2], const double h[2], const int n[2], double *out,
+                   gr_err *e);
 
 #endif

@@ -383,16 +383,15 @@ gr_mesh *gr_mc(const gr_grid3 *g, double iso, gr_err *e) {
 typedef struct field_planes {
   const gr_field *f;
   mc_state *s;
-  double *x, *y, *z;
   double *all; /* every plane's samples (taken in parallel), or NULL: one at a time */
 } field_planes;
 
-/* Plane k's samples into out, z (np values) the scratch for its heights. */
-static int sample_plane(const field_planes *fp, int k, double *z, double *out, gr_err *e) {
-  size_t np = (size_t)fp->s->nx * fp->s->ny;
-  double zz = fp->s->z0 + k * fp->s->hz;
-  for (size_t q = 0; q < np; q++) z[q] = zz;
-  return gr_field_eval(fp->f, np, fp->x, fp->y, z, out, e);
+/* Plane k's samples into out. */
+static int sample_plane(const field_planes *fp, int k, double *out, gr_err *e) {
+  const mc_state *s = fp->s;
+  double lo[2] = {s->x0, s->y0}, h[2] = {s->hx, s->hy};
+  int n[2] = {s->nx, s->ny};
+  return gr_field_plane(fp->f, s->z0 + k * s->hz, lo, h, n, out, e);
 }
 
 static int field_plane(void *ud, int k, double *out, gr_err *e) {
@@ -402,18 +401,14 @@ static int field_plane(void *ud, int k, double *out, gr_err *e) {
     memcpy(out, fp->all + np * k, np * sizeof *out);
     return GR_OK;
   }
-  return sample_plane(fp, k, fp->z, out, e);
+  return sample_plane(fp, k, out, e);
 }
 
 /* Pool item: plane k sampled into fp->all. */
 static int plane_item(void *ud, int k, gr_err *e) {
   field_planes *fp = ud;
   size_t np = (size_t)fp->s->nx * fp->s->ny;
-  double *z = malloc(np * sizeof *z);
-  if (!z) return gr_fail(e, GR_EMEM, "out of memory");
-  int rc = sample_plane(fp, k, z, fp->all + np * k, e);
-  free(z);
-  return rc;
+  return sample_plane(fp, k, fp->all + np * k, e);
 }
 
 /* Samples of all planes held at once for parallel sampling up to this size. */
@@ -447,29 +442,20 @@ gr_mesh *gr_mc_field_mt(const gr_field *f, const double lo[3], const double hi[3
             n[0], n[1], np * 88.0 / 1e9);
     return NULL;
   }
-  field_planes fp = {f, &s, malloc(3 * np * sizeof(double)), NULL, NULL, NULL};
-  if (!fp.x) { gr_fail(e, GR_EMEM, "out of memory for a %d x %d slab", n[0], n[1]); return NULL; }
-  fp.y = fp.x + np; fp.z = fp.y + np;
-  for (int j = 0; j < n[1]; j++)
-    for (int i = 0; i < n[0]; i++) {
-      fp.x[(size_t)j * n[0] + i] = s.x0 + i * s.hx;
-      fp.y[(size_t)j * n[0] + i] = s.y0 + j * s.hy;
-    }
+  field_planes fp = {f, &s, NULL};
   if (refine) { /* mark refinement on: rd non-NULL */
     s.capd = 64;
     s.rd = malloc(s.capd * sizeof *s.rd);
-    if (!s.rd) { free(fp.x); gr_fail(e, GR_EMEM, "out of memory"); return NULL; }
+    if (!s.rd) { gr_fail(e, GR_EMEM, "out of memory"); return NULL; }
   }
   if (threads > 1 && gr_field_threadsafe(f) && (double)np * n[2] * sizeof(double) <= MC_ALL_BYTES &&
       (fp.all = malloc(np * (size_t)n[2] * sizeof *fp.all)) &&
       gr_pool_for(n[2], plane_item, &fp, threads, NULL, NULL, NULL, e)) {
     free(fp.all);
-    free(fp.x);
     free(s.rd);
     return NULL;
   }
   gr_mesh *m = mc_run(&s, n[2], field_plane, &fp, refine ? f : NULL, e);
   free(fp.all);
-  free(fp.x);
   return m;
 }
