@@ -59,8 +59,9 @@ typedef struct offset {
 
 /* H's local reach (reach.h), made when first needed: by the first point
  * beyond the global reach that a field sharing H and using the table
- * (lreach_wanted: thin sheets do not) evaluates. Made once, under the mutex, always from the same H and
- * options: the same table whichever thread or voxel asks first. */
+ * (lreach_wanted: thin sheets do not) evaluates. Made once, under the
+ * mutex, always from the same H and options: the same table whichever
+ * thread or voxel asks first. */
 struct lreach_slot {
   pthread_mutex_t mu;
   int state;           /* 0: not made; 1: made (r NULL when that failed: the reach serves) */
@@ -1067,11 +1068,11 @@ static const gr_reach *lreach_get(lreach_slot *s) {
 /* Whether field f uses H's local reach: only when its thickness reaches
  * H's reach somewhere (tmax >= reach). Thinner walls put few points beyond
  * the reach (grid nodes and probes near the thickest wall): searching H for
- * those costs less than making the table (1-1.5 s of CPU per group). The
- * group's reference field (thickness 0, whose strict checks of the shared
- * closest points every member reads) never uses it, so those checks do not
- * depend on which member asks first. Decided per field from its own
- * thickness: its values are the same whoever else made the table. */
+ * those costs less than making the table (1-1.5 s of CPU per group).
+ * Decided per field from its own thickness, so its values are the same
+ * whoever else made the table; the strict checks of the group's shared
+ * closest points follow the asking member's choice (cptab.c keeps the two
+ * kinds apart). */
 static int lreach_wanted(const offset *f) { return f->lrs && f->tmax >= f->reach; }
 
 /* The larger of H's reach and its local reach at q (reach.h; the table made

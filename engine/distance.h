@@ -112,10 +112,10 @@ double gr_offset_value_floor(const gr_field *f, double dlb);
  * nearer than q by more than 0.1 um (also one within twice the mesh's
  * measured error, away from q's own patch), it is refined and taken when
  * nearer. Depends on p, q and the surface only, not on T. Exact mode (a
- * no-op in mesh mode or for q = NaN). */
-/* With `local`, H's local reach may spare the search where it holds (the
- * table made when first needed; gr_offset_uses_local_reach); the answer can
- * differ from one without it in the last bits. */
+ * no-op in mesh mode or for q = NaN). With `local`, H's local reach may
+ * spare the search where it holds (the table made when first needed;
+ * gr_offset_uses_local_reach); the answer can differ from one without it in
+ * the last bits. */
 int gr_offset_strict(const gr_field *f, const double p[3], double q[3], double *sd, int local, gr_err *e);
 /* Whether offset field f uses H's local reach (its thickness reaches H's
  * reach somewhere); 0 when f is not an offset field. */
