@@ -6,8 +6,10 @@
 -- knowledge base. Reports the CPU time of the process (user + system, from
 -- the shell's `times`: meaningful on a loaded machine where wall time is
 -- not), CPU per unique voxel-layer, peak RSS, the most templates held at
--- once (streamed row by row of voxels) and the continuous/constant
--- CPU ratio, at three sizes (2, 3 and 4 cells a side). `-D sizes=2,3,4,6`
+-- once (streamed row by row of voxels), the continuous/constant CPU ratio
+-- and the marginal CPU per unique voxel-layer (the two jobs' difference in
+-- CPU per unique voxel-layer beyond the constant job's one: fixed costs
+-- apart), at three sizes (2, 3 and 4 cells a side). `-D sizes=2,3,4,6`
 -- adds the issue's 6 x 6 x 6 (about a minute of CPU);
 -- `-D extra='-D kb_store=all'` passes options to every job. Last, the same
 -- grading about a thin and a thick mean on 3 x 3 x 1 cells (thick sheets cost
@@ -27,7 +29,7 @@ local function run(name, n, thickness)
 end
 
 print(("continuous grading, P sheet, cell 2 mm, layer 0.04, exact mode, res 40, T = %s %s"):format(CONT, extra))
-print("  size     job         classes  built  stored  held   CPU s   wall s  ms CPU/unique voxel-layer  peak RSS MB  CPU ratio")
+print("  size     job         classes  built  stored  held   CPU s   wall s  ms CPU/unique voxel-layer  peak RSS MB  CPU ratio  marginal ms")
 for s in sizes_s:gmatch("%d+") do
   local n = tonumber(s)
   local const, ccpu, cwall = run("const" .. n, n, "0.1")
@@ -37,10 +39,14 @@ for s in sizes_s:gmatch("%d+") do
     local per_voxel = st.layers / n -- local layers of one voxel
     local vl = st.templates.unique * per_voxel
     local stored = st.templates.stored and tostring(st.templates.stored) or "-"
-    print(("  %dx%dx%d  %-10s  %7d  %5d  %6s  %4s  %6.2f  %7.2f  %24.2f  %11.0f  %s"):format(n, n, n, r[1],
+    -- marginal: the continuous job's CPU less the constant job's, per unique voxel-layer beyond
+    -- the constant job's one class (what each more unique voxel-layer costs, fixed costs apart)
+    local cont_row = r[1] == "continuous"
+    local marginal = cont_row and 1000 * (tcpu - ccpu) / ((st.templates.unique - 1) * per_voxel) or nil
+    print(("  %dx%dx%d  %-10s  %7d  %5d  %6s  %4s  %6.2f  %7.2f  %24.2f  %11.0f  %9s  %11s"):format(n, n, n, r[1],
       st.templates.unique, st.templates.built, stored, tostring(st.templates.held_max or "-"), r[3], r[4],
-      1000 * r[3] / vl, st.peak_rss_mb,
-      r[1] == "continuous" and ("%.1fx"):format(tcpu / ccpu) or ""))
+      1000 * r[3] / vl, st.peak_rss_mb, cont_row and ("%.1fx"):format(tcpu / ccpu) or "",
+      marginal and ("%.2f"):format(marginal) or ""))
   end
 end
 -- The thickness matters as much as the count: a 3 x 3 x 1 block (9 unique
