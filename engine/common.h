@@ -34,6 +34,10 @@ static inline void gr_err_clear(gr_err *e) { if (e) { e->code = GR_OK; e->msg[0]
 /* Length of (dx, dy): sqrt without hypot's overflow care (coordinates are
  * millimetres, far from overflow), several times faster in hot loops. */
 static inline double gr_len2d(double dx, double dy) { return sqrt(dx * dx + dy * dy); }
+/* Distance between the points a and b (3 coordinates each). */
+static inline double gr_dist3(const double a[3], const double b[3]) {
+  return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+}
 /* min / max of numbers known not to be NaN, inlined (libm's fmin / fmax
  * are calls, and show in hot loops such as a tree build). */
 static inline double gr_lo(double a, double b) { return b < a ? b : a; }

@@ -166,10 +166,6 @@ static int thick(const offset *f, const gr_expr *x, size_t n, const double *cons
 
 static int exact_newton(const offset *f, const double p[3], double q[3]);
 
-static double dist3(const double p[3], const double q[3]) {
-  return sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]));
-}
-
 /* Newton projection of x onto phi = 0 (a few steps); 0 if it fails. */
 static int project(const offset *f, double x[3]) {
   gr_err e;
@@ -229,7 +225,7 @@ static int exact_refine(const offset *f, const double p[3], double q[3]) {
       x[2] -= v * gz / g2;
       if (fabs(v) < 1e-14) break;
     }
-    double d = dist3(p, x);
+    double d = gr_dist3(p, x);
     if (d > db) { /* overshot: back to the best point, half the move */
       if (alpha < 1e-3) break;
       alpha *= 0.5;
@@ -253,7 +249,7 @@ static int exact_refine(const offset *f, const double p[3], double q[3]) {
   }
   if (!conv) memcpy(x, xb, sizeof x);
   if (!conv && !settle(f, p, q, x)) return 0;
-  double dq = dist3(x, q);
+  double dq = gr_dist3(x, q);
   if (!(isfinite(dq) && dq < 0.25 * f->L)) return 0;
   memcpy(q, x, sizeof x);
   return 1;
@@ -357,9 +353,9 @@ static void closest_h(const offset *f, const double p[3], double maxd, gr_hit *h
 /* The nearer of q and c's candidate (a point of H's mesh, refined onto
  * phi = 0); returns |p - q|. */
 static double take_nearer(const offset *f, const double p[3], double q[3], gr_hit *c) {
-  double d = dist3(p, q);
+  double d = gr_dist3(p, q);
   if (c->tri < 0 || !(exact_newton(f, p, c->q) || exact_refine(f, p, c->q))) return d;
-  double d2 = dist3(p, c->q);
+  double d2 = gr_dist3(p, c->q);
   if (d2 < d) {
     memcpy(q, c->q, sizeof c->q);
     return d2;
@@ -378,7 +374,7 @@ static double take_nearer(const offset *f, const double p[3], double q[3], gr_hi
  * would pick either. With `local`, the local reach at q may serve instead
  * of H's reach (it is made when first needed). Returns the distance |p - q|. */
 static double nearest_patch(const offset *f, const double p[3], double q[3], double tol, int away, int local) {
-  double d = dist3(p, q);
+  double d = gr_dist3(p, q);
   /* within the reach: no other patch can be nearer */
   if (d < f->reach || (local && f->lrs && d < reach_local(f, q))) return d;
   gr_hit c;
@@ -689,7 +685,7 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
         const double *hk = hint + 3 * ((s + i) * nh + k);
         double qk[3] = {hk[0], hk[1], hk[2]};
         if (isnan(qk[0]) || !exact_newton(f, p, qk)) continue;
-        double dk = dist3(p, qk);
+        double dk = gr_dist3(p, qk);
         if (dk < d) {
           d = dk;
           memcpy(qi, qk, sizeof qk);
@@ -707,7 +703,7 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
         if (h.tri < 0) return gr_fail(e, GR_EGEOM, "no closest point of H to (%g, %g, %g)", p[0], p[1], p[2]);
         if (f->mode == GR_DIST_EXACT) exact_refine(f, p, h.q);
         memcpy(qi, h.q, sizeof h.q);
-        d = dist3(p, qi);
+        d = gr_dist3(p, qi);
       }
       sd[i] = ph[i] > 0 ? d : -d;
       if (grad) dist_grad(f, p, qi, sd[i], grad + 3 * (s + i));
@@ -784,7 +780,7 @@ int gr_offset_eval_model(const gr_field *f_, size_t n, const double *x, const do
       double P[3] = {x[s + i], y[s + i], z[s + i]};
       out[s + i] = NAN;
       if (f->mode != GR_DIST_EXACT || isnan(c[0])) continue;
-      double dc = dist3(P, c);
+      double dc = gr_dist3(P, c);
       if (!(dc < reach_for(f, c, dc))) continue;
       int ok = model_foot(f, P, c, q + 3 * k, sd + k, e);
       if (ok < 0) return e->code;

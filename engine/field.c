@@ -806,6 +806,14 @@ static int fill_grid(const gr_field *f, const grid_axes *g, size_t total, double
   return rc;
 }
 
+int gr_field_plane(const gr_field *f, double z, const double lo[2], const double h[2], const int n[2], double *out,
+                   gr_err *e) {
+  if (!f || !lo || !h || !n || !out) return gr_fail(e, GR_EARG, "plane sample: missing argument");
+  if (n[0] < 1 || n[1] < 1) return gr_fail(e, GR_EARG, "plane sample: %d x %d samples", n[0], n[1]);
+  grid_axes a = {2, {n[0], n[1], 1}, {lo[0], lo[1], 0}, {h[0], h[1], 0}, z};
+  return fill_grid(f, &a, (size_t)n[0] * n[1], out, e);
+}
+
 gr_grid3 *gr_grid3_sample(const gr_field *f, const double lo[3],
                           const double hi[3], const int n[3], gr_err *e) {
   if (!f || !lo || !hi || !n) { gr_fail(e, GR_EARG, "grid3 sample: missing argument"); return NULL; }
@@ -859,17 +867,9 @@ gr_grid2 *gr_grid2_sample(const gr_field *f, double z, const double lo[2],
   g->x0 = lo[0]; g->y0 = lo[1]; g->z = z;
   g->hx = (hi[0] - lo[0]) / (n[0] - 1);
   g->hy = (hi[1] - lo[1]) / (n[1] - 1);
-  grid_axes a = {2, {n[0], n[1], 1}, {lo[0], lo[1], 0}, {g->hx, g->hy, 0}, z};
-  if (fill_grid(f, &a, (size_t)count, g->v, e)) { gr_grid2_free(g); return NULL; }
+  double h[2] = {g->hx, g->hy};
+  if (gr_field_plane(f, z, lo, h, n, g->v, e)) { gr_grid2_free(g); return NULL; }
   return g;
-}
-
-int gr_field_plane(const gr_field *f, double z, const double lo[2], const double h[2], const int n[2], double *out,
-                   gr_err *e) {
-  if (!f || !lo || !h || !n || !out) return gr_fail(e, GR_EARG, "plane sample: missing argument");
-  if (n[0] < 1 || n[1] < 1) return gr_fail(e, GR_EARG, "plane sample: %d x %d samples", n[0], n[1]);
-  grid_axes a = {2, {n[0], n[1], 1}, {lo[0], lo[1], 0}, {h[0], h[1], 0}, z};
-  return fill_grid(f, &a, (size_t)n[0] * n[1], out, e);
 }
 
 void gr_grid3_free(gr_grid3 *g) {

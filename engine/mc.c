@@ -439,7 +439,7 @@ gr_mesh *gr_mc_field_mt(const gr_field *f, const double lo[3], const double hi[3
   size_t np = (size_t)n[0] * n[1];
   if (np > ((size_t)1 << 31) / 8) {
     gr_fail(e, GR_EMEM, "marching cubes slab of %d x %d samples needs about %.1f GB",
-            n[0], n[1], np * 88.0 / 1e9);
+            n[0], n[1], np * 64.0 / 1e9);
     return NULL;
   }
   field_planes fp = {f, &s, NULL};

@@ -17,9 +17,6 @@ struct gr_reach {
   float *v;           /* n[0] n[1] n[2] values, mm */
 };
 
-static double dist3(const double a[3], const double b[3]) {
-  return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
-}
 
 /* 1 when s is (within eps) the closest point of s + sg r n, 0 when not, -1
  * when no closest point was found; x: the closest point. */
@@ -27,7 +24,7 @@ static int keeps(gr_reach_foot foot, void *ud, const double s[3], const double n
                  double x[3]) {
   double c[3] = {s[0] + sg * r * n[0], s[1] + sg * r * n[1], s[2] + sg * r * n[2]};
   if (!foot(ud, c, x)) return -1;
-  return dist3(x, s) < eps;
+  return gr_dist3(x, s) < eps;
 }
 
 /* Bisection for the cut distance (reach.h). */
@@ -90,15 +87,26 @@ static int cut_item(void *ctx, int item, gr_err *e) {
   return GR_OK;
 }
 
-static size_t cell_of(const gr_reach *r, const double q[3]) {
+/* The index of cell (i, j, k), each wrapped into the period. */
+static size_t cell_index(const int n[3], long i, long j, long k) {
+  long c[3] = {i, j, k};
   size_t id = 0;
   for (int a = 2; a >= 0; a--) {
-    double u = (q[a] - r->lo[a]) / r->g[a];
-    long k = (long)floor(u) % r->n[a];
-    if (k < 0) k += r->n[a];
-    id = id * (size_t)r->n[a] + (size_t)k;
+    long w = c[a] % n[a];
+    id = id * (size_t)n[a] + (size_t)(w < 0 ? w + n[a] : w);
   }
   return id;
+}
+
+/* The cell (i, j, k) holding q, unwrapped. */
+static void cell_ijk(const gr_reach *r, const double q[3], long c[3]) {
+  for (int a = 0; a < 3; a++) c[a] = (long)floor((q[a] - r->lo[a]) / r->g[a]);
+}
+
+static size_t cell_of(const gr_reach *r, const double q[3]) {
+  long c[3];
+  cell_ijk(r, q, c);
+  return cell_index(r->n, c[0], c[1], c[2]);
 }
 
 /* The steepest slope of t* at each of the nv points s, against
@@ -115,16 +123,14 @@ static double slopes(const gr_reach *r, const double *s, const double *t, size_t
     if (!(t[i] < cap) || !(t[i] > 0)) continue;
     const double *si = s + 3 * i;
     long ci[3];
-    for (int a = 0; a < 3; a++) ci[a] = (long)floor((si[a] - r->lo[a]) / r->g[a]);
+    cell_ijk(r, si, ci);
     for (int dk = -1; dk <= 1; dk++)
       for (int dj = -1; dj <= 1; dj++)
         for (int di = -1; di <= 1; di++) {
-          long a = ((ci[0] + di) % n[0] + n[0]) % n[0], b = ((ci[1] + dj) % n[1] + n[1]) % n[1];
-          long c = ((ci[2] + dk) % n[2] + n[2]) % n[2];
-          size_t cell = ((size_t)c * n[1] + b) * n[0] + a;
+          size_t cell = cell_index(n, ci[0] + di, ci[1] + dj, ci[2] + dk);
           for (size_t k = start[cell]; k < start[cell + 1]; k++) {
             size_t jx = order[k];
-            double d = dist3(si, s + 3 * jx);
+            double d = gr_dist3(si, s + 3 * jx);
             if (jx == i || !(d <= dmax) || !(d >= dmin) || !(t[jx] < cap) || !(t[jx] > 0)) continue;
             sl[i] = fmax(sl[i], fabs(t[i] - t[jx]) / d);
           }
@@ -138,7 +144,7 @@ static double slopes(const gr_reach *r, const double *s, const double *t, size_t
  * period wraps) less the steepest of cslope over them times spacing; 0
  * where all are empty (cmin INFINITY). */
 static void dilate(gr_reach *r, const double *cmin, const double *cslope, double spacing, float *v) {
-  int *n = r->n;
+  const int *n = r->n;
   for (int k = 0; k < n[2]; k++)
     for (int j = 0; j < n[1]; j++)
       for (int i = 0; i < n[0]; i++) {
@@ -146,11 +152,11 @@ static void dilate(gr_reach *r, const double *cmin, const double *cslope, double
         for (int dk = -1; dk <= 1; dk++)
           for (int dj = -1; dj <= 1; dj++)
             for (int di = -1; di <= 1; di++) {
-              int a = (i + di + n[0]) % n[0], b = (j + dj + n[1]) % n[1], c = (k + dk + n[2]) % n[2];
-              m = fmin(m, cmin[((size_t)c * n[1] + b) * n[0] + a]);
-              sl = fmax(sl, cslope[((size_t)c * n[1] + b) * n[0] + a]);
+              size_t c = cell_index(n, i + di, j + dj, k + dk);
+              m = fmin(m, cmin[c]);
+              sl = fmax(sl, cslope[c]);
             }
-        v[((size_t)k * n[1] + j) * n[0] + i] = isfinite(m) ? (float)fmax(0, m - sl * spacing) : 0.f;
+        v[cell_index(n, i, j, k)] = isfinite(m) ? (float)fmax(0, m - sl * spacing) : 0.f;
       }
 }
 
@@ -163,19 +169,20 @@ static void dilate(gr_reach *r, const double *cmin, const double *cslope, double
  * slope of all). Out of memory: no table (all 0). */
 static void fill(gr_reach *r, const double *s, const double *t, size_t nv, double cap, double spacing) {
   size_t nc = (size_t)r->n[0] * r->n[1] * r->n[2];
-  size_t *start = calloc(nc + 2, sizeof *start), *order = malloc((nv + 1) * sizeof *order);
+  size_t *start = calloc(nc + 2, sizeof *start), *order = malloc(2 * (nv + 1) * sizeof *order);
+  size_t *cell = order ? order + nv + 1 : NULL; /* each point's cell */
   double *sl = malloc((nv + 1) * sizeof *sl), *cmin = malloc(2 * nc * sizeof *cmin);
   double *cslope = cmin ? cmin + nc : NULL;
   int ok = start && order && sl && cmin;
-  for (size_t i = 0; ok && i < nv; i++) start[cell_of(r, s + 3 * i) + 2]++;
+  for (size_t i = 0; ok && i < nv; i++) start[(cell[i] = cell_of(r, s + 3 * i)) + 2]++;
   for (size_t c = 0; ok && c < nc; c++) start[c + 2] += start[c + 1];
-  for (size_t i = 0; ok && i < nv; i++) order[start[cell_of(r, s + 3 * i) + 1]++] = i;
+  for (size_t i = 0; ok && i < nv; i++) order[start[cell[i] + 1]++] = i;
   if (ok) {
     double steep = slopes(r, s, t, nv, cap, 0.5 * spacing, 2 * spacing, order, start, sl);
     if (getenv("GRADUS_DEBUG")) fprintf(stderr, "local reach: steepest slope %.3f\n", steep);
     for (size_t c = 0; c < nc; c++) cmin[c] = INFINITY, cslope[c] = 0;
     for (size_t i = 0; i < nv; i++) {
-      size_t c = cell_of(r, s + 3 * i);
+      size_t c = cell[i];
       cmin[c] = fmin(cmin[c], t[i]);
       cslope[c] = fmax(cslope[c], sl[i] >= 0 ? sl[i] : steep);
     }
