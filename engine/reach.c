@@ -8,8 +8,11 @@
 
 /* Cells per period along the shortest axis, at most: a cell is never
  * smaller than the spacing of the points, so that the nearest point to any
- * point of H lies in its cell or a neighbour. */
-#define REACH_CELLS 20
+ * point of H lies in its cell or a neighbour. The finer the cells, the
+ * nearer each cell's value to t* there (a cell takes the smallest t* of its
+ * 27); 64 keeps the table under 1 MB (res 40 cells are about 36 a period,
+ * the points' spacing). */
+#define REACH_CELLS 64
 
 struct gr_reach {
   double lo[3], g[3]; /* period box origin, cell size (mm) */
@@ -112,21 +115,23 @@ static size_t cell_of(const gr_reach *r, const double q[3]) {
 /* The steepest slope of t* at each of the nv points s, against
  * the points dmin to dmax from it (both known and below the cap; nearer
  * pairs show only the cut distances' 1 % rounding), found via the cells
- * (points sorted by cell: order, start): sl[i], -1 where no pair is; returns
+ * within dmax (points sorted by cell: order, start): sl[i], -1 where no pair is; returns
  * the steepest of all (0 when none). */
 static double slopes(const gr_reach *r, const double *s, const double *t, size_t nv, double cap, double dmin,
                      double dmax, const size_t *order, const size_t *start, double *sl) {
   double worst = 0;
   const int *n = r->n;
+  /* cells within dmax of the point's own, whatever the cells' size */
+  int w = (int)ceil(dmax / fmin(r->g[0], fmin(r->g[1], r->g[2])));
   for (size_t i = 0; i < nv; i++) {
     sl[i] = -1;
     if (!(t[i] < cap) || !(t[i] > 0)) continue;
     const double *si = s + 3 * i;
     long ci[3];
     cell_ijk(r, si, ci);
-    for (int dk = -1; dk <= 1; dk++)
-      for (int dj = -1; dj <= 1; dj++)
-        for (int di = -1; di <= 1; di++) {
+    for (int dk = -w; dk <= w; dk++)
+      for (int dj = -w; dj <= w; dj++)
+        for (int di = -w; di <= w; di++) {
           size_t cell = cell_index(n, ci[0] + di, ci[1] + dj, ci[2] + dk);
           for (size_t k = start[cell]; k < start[cell + 1]; k++) {
             size_t jx = order[k];

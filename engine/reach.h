@@ -12,8 +12,8 @@
  *
  * Takes: points of H (on the exact surface) with unit normals, the closest
  * point of H to any point (a callback), one period box. Gives: per cell of a
- * grid over the period (cells of about 1/20 of the period, at least the
- * points' spacing), the smallest t* (either side, capped) of the points in
+ * grid over the period (cells of the points' spacing, at least 1/64 of the
+ * period), the smallest t* (either side, capped) of the points in
  * the cell and its 26 neighbours (wrapped) less a margin for what t* may
  * lose between samples (reach.c), 0 where no point is near. */
 #ifndef GR_REACH_H
