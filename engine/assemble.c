@@ -4,6 +4,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include "classify.h"
 #include "clip.h"
 #include "facestep.h"
 #include "facing.h"
@@ -108,20 +109,6 @@ static int sort_segs(gr_asm_scratch *s, gr_err *e) {
 
 /* Hatch one voxel: its template region translated to global coordinates,
  * lines of the global family at angle a, clipped to the voxel square. */
-/* Sides of voxel v on the part's boundary (no lattice beyond): bits 1 x=0,
- * 2 x=L, 4 y=0, 8 y=L; 0 when the job leaves cut sides open. */
-static int voxel_sides(const gr_job *j, int v) {
-  if (!j->o.faces) return 0;
-  int i, jj, k, nx = j->o.n[0], ny = j->o.n[1], m = 0;
-  gr_grid_ijk(&j->grid, v, &i, &jj, &k);
-  if (i == 0 || j->vcls[v - 1] < 0) m |= 1;
-  if (i == nx - 1 || j->vcls[v + 1] < 0) m |= 2;
-  if (jj == 0 || j->vcls[v - nx] < 0) m |= 4;
-  if (jj == ny - 1 || j->vcls[v + nx] < 0) m |= 8;
-  (void)ny;
-  return m;
-}
-
 /* The voxel rectangle [0, Lx] x [0, Ly] with the sides in mask moved in by c (mm). */
 static void side_box(const gr_job *j, int mask, double c, double lo[2], double hi[2]) {
   const double *L = j->o.cell;
@@ -377,7 +364,7 @@ static int gather_voxels(gr_job *j, int g, gr_asm_scratch *s, gr_layer *out, gr_
     gr_grid_origin(&j->grid, v, o);
     out->area += tl->area;
     size_t nb0 = s->cont->nb;
-    int mask = voxel_sides(j, v);
+    int mask = gr_voxel_sides(j, v);
     if ((mask && boundary_contours(j, s, tl, mask)) || gr_layer_append(s->cont, mask ? s->fl : tl->paths, o[0], o[1])) {
       rc = gr_fail(e, GR_EMEM, "out of memory");
       break;

@@ -236,7 +236,21 @@ int gr_classify_run(gr_job *j, int direct, gr_err *e) {
   free(head);
   free(link);
   j->st.classes = j->ncls;
+  /* the classes that meet the part's boundary: only their templates need side segments */
+  for (int v = 0; v < j->nvox; v++)
+    if (j->vcls[v] >= 0 && gr_voxel_sides(j, v)) j->cls[j->vcls[v]].edge = 1;
   return GR_OK;
+}
+
+int gr_voxel_sides(const gr_job *j, int v) {
+  if (!j->o.faces) return 0;
+  int i, jj, k, nx = j->o.n[0], ny = j->o.n[1], m = 0;
+  gr_grid_ijk(&j->grid, v, &i, &jj, &k);
+  if (i == 0 || j->vcls[v - 1] < 0) m |= 1;
+  if (i == nx - 1 || j->vcls[v + 1] < 0) m |= 2;
+  if (jj == 0 || j->vcls[v - nx] < 0) m |= 4;
+  if (jj == ny - 1 || j->vcls[v + nx] < 0) m |= 8;
+  return m;
 }
 
 /* ---- template build ---- */

@@ -15,6 +15,10 @@
 /* Group the voxels into classes (j->cls, j->vcls, j->vstate, j->st voxel
  * counts). direct != 0: one class per voxel (kb=off). */
 int gr_classify_run(gr_job *j, int direct, gr_err *e);
+/* Sides of voxel v on the part's boundary (no lattice beyond): bits 1 x=0,
+ * 2 x=L, 4 y=0, 8 y=L; 0 when the job leaves cut sides open (faces off).
+ * Valid once gr_classify_run has set every voxel's class. */
+int gr_voxel_sides(const gr_job *j, int v);
 /* Rows: the voxels of each z-row that have a class, in sequence order
  * (j->roworder, j->rowcount). */
 int gr_classify_rows(gr_job *j, gr_err *e);

@@ -16,6 +16,8 @@ typedef struct gr_vclass {
   int rep;            /* representative voxel */
   int count;          /* voxels in the class */
   int trimmed;        /* computed directly (domain boundary) */
+  int edge;           /* a voxel of the class lies on the part's boundary
+                         (gr_voxel_sides): its template needs side segments */
   char key[65];       /* SHA-256 of sig, hex */
   char *sig;          /* signature text */
   gr_tmpl *t;

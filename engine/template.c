@@ -229,7 +229,7 @@ static gr_hatch_opts tmpl_hatch_opts(const gr_job_opts *opt, int sharp) {
   return ho;
 }
 
-int gr_tmpl_paths(const gr_job_opts *opt, gr_tlayer *tl, int sharp, gr_err *e) {
+int gr_tmpl_paths(const gr_job_opts *opt, gr_tlayer *tl, int sharp, int faces, gr_err *e) {
   double box_lo[2] = {0, 0}, box_hi[2] = {opt->cell[0], opt->cell[1]};
   gr_hatch_opts ho = tmpl_hatch_opts(opt, sharp);
   if (!tl->region && !(tl->region = gr_rings_new())) return gr_fail(e, GR_EMEM, "out of memory");
@@ -255,7 +255,7 @@ int gr_tmpl_paths(const gr_job_opts *opt, gr_tlayer *tl, int sharp, gr_err *e) {
   tl->paths->thin_walls = rep.thin_walls;
   /* hatch ends need no sub-micrometre region: fewer edges to scan per instance */
   if (rc == GR_OK && gr_rings_simplify(tl->region, REGION_TOL)) rc = gr_fail(e, GR_EMEM, "out of memory");
-  if (rc == GR_OK && face_lines(opt, tl)) rc = gr_fail(e, GR_EMEM, "out of memory");
+  if (rc == GR_OK && faces && face_lines(opt, tl)) rc = gr_fail(e, GR_EMEM, "out of memory");
   free(buf);
   gr_layer_free(tmp);
   return rc;
@@ -291,7 +291,7 @@ int gr_tmpl_layers(const gr_tmpl_in *in, gr_tmpl *t, const gr_field *f, const gr
     if ((rc = tab ? gr_cptab_slice(tab, f, o, q, z, &so, tl->section, e) : gr_slice_field(f, z, &so, tl->section, e))) break;
     gr_rings_translate(tl->section, -o[0], -o[1]);
     tl->area = gr_clip_area(tl->section, box_lo, box_hi);
-    if ((rc = gr_tmpl_paths(opt, tl, in->sharp, e))) break;
+    if ((rc = gr_tmpl_paths(opt, tl, in->sharp, in->faces, e))) break;
     tl->q[0] = tl->q[1] = tl->q[2] = NAN;
     if (rc == GR_OK && opt->verify) rc = verify_template_layer(opt, tl, gr_layer_angle(opt, g0 + t->j0 + q), e);
   }
