@@ -195,7 +195,15 @@ static int near_eval(void *ud_, size_t n, const double *x, const double *y, doub
       if (isnan(out[s + i])) {
         fx[k] = x[s + i];
         fy[k] = y[s + i];
-        node_hints(u, fx[k], fy[k], hint + 3 * NH * k);
+        double *hk = hint + 3 * NH * k;
+        if (isnan(pr[3 * i])) {
+          node_hints(u, fx[k], fy[k], hk);
+        } else {
+          /* a prediction: the stencil's closest points lie on one patch, and
+           * it is a nearer start than any node's */
+          memcpy(hk, pr + 3 * i, 3 * sizeof *hk);
+          for (int r = 3; r < 3 * NH; r++) hk[r] = NAN;
+        }
         id[k++] = i;
       }
     if (k && (rc = gr_offset_eval_near(u->f, k, fx, fy, zb, hint, NH, fo, gx ? fg : NULL, e))) return rc;
