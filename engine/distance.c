@@ -940,13 +940,17 @@ static int offset_check_thickness(offset *f, const gr_offset_opts *o, size_t nv,
 /* Touching offsets: from each vertex v of H, step along the normal to the
  * offset surface (distance T(v)); if that point is as close to another part
  * of H (one whose closest point is more than 2 T(v) from v), the offset
- * sheets of the two parts meet there: f->warning. Sheets only. */
+ * sheets of the two parts meet there: f->warning. Sheets only. A vertex
+ * whose T is below H's reach, or its local reach when the field uses the
+ * table (`local`), keeps its point's foot: no other part can be nearer, and
+ * it is not searched. */
 static void offset_touch_warning(offset *f, const gr_offset_opts *o, int shared, size_t nv, const double *vx,
-                                 const double *vy, const double *vz, const double *t) {
+                                 const double *vy, const double *vz, const double *t, int local) {
   if (f->kind != GR_OFFSET_SHEET) return;
   for (size_t i = 0; i < nv && !f->warning[0]; i += 7) {
     double tv = (f->t || f->tin || f->tfield) ? t[i] : f->tconst;
     double v[3] = {vx[i], vy[i], vz[i]}, g[3];
+    if (tv < f->reach || (local && tv < reach_local(f, v))) continue;
     int in = 1; /* a shared H: only this field's box */
     for (int a = 0; a < 3 && shared; a++) in &= v[a] >= o->box_lo[a] && v[a] <= o->box_hi[a];
     if (!in) continue;
@@ -1153,10 +1157,13 @@ static int offset_checks(offset *f, const gr_offset_opts *o, const offset *lk, d
   nv = offset_vertices(f, o, lk != NULL, reach, vx, vy, vz);
   int rc = offset_check_thickness(f, o, nv, vx, vy, vz, t, maxt, e);
   if (rc == GR_OK) {
-    offset_touch_warning(f, o, lk != NULL, nv, vx, vy, vz, t);
     f->reach = lk ? lk->reach : (o->mode == GR_DIST_EXACT ? reach_estimate(f, o, nv, vx, vy, vz) : 0);
     f->lrs = lk ? lk->lrs : NULL;
     if (!lk && o->periodic && o->mode == GR_DIST_EXACT) rc = lreach_slot_new(f, o, e);
+    /* the local reach only where the field will use it anyway (lreach_wanted)
+     * and its owner is complete (a member of a group: the table needs the
+     * owner's measured mesh deviation, set after these checks) */
+    if (rc == GR_OK) offset_touch_warning(f, o, lk != NULL, nv, vx, vy, vz, t, lk && f->lrs && *maxt >= f->reach);
   }
   free(buf);
   return rc;
@@ -1199,7 +1206,7 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   int dev = !lk && o->mode == GR_DIST_EXACT;
   int dev_th = dev && o->threads > 1 && gr_field_threadsafe(f->phi);
   dev_th = dev_th && pthread_create(&dj.th, NULL, dev_main, &dj) == 0;
-  double maxt;
+  double maxt = 0;
   int rc = offset_checks(f, o, lk, reach, &maxt, e);
   if (dev_th) pthread_join(dj.th, NULL);
   else if (dev && rc == GR_OK) dj.out = mesh_deviation(f);
