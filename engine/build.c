@@ -96,7 +96,7 @@ static int prepare_item(void *arg_, int item, gr_err *e) {
     pthread_mutex_unlock(a->kbmu);
     if (rc) return rc;
     if (r) {
-      gr_tmpl *t = gr_tmpl_from_record(&j->o, r, nl);
+      gr_tmpl *t = gr_tmpl_from_record(&j->o, r, nl, cl->edge);
       gr_template_free(r);
       if (t) {
         gr_tmpl_free(cl->t);

@@ -950,10 +950,9 @@ static void offset_touch_warning(offset *f, const gr_offset_opts *o, int shared,
   for (size_t i = 0; i < nv && !f->warning[0]; i += 7) {
     double tv = (f->t || f->tin || f->tfield) ? t[i] : f->tconst;
     double v[3] = {vx[i], vy[i], vz[i]}, g[3];
-    if (tv < f->reach || (local && tv < reach_local(f, v))) continue;
     int in = 1; /* a shared H: only this field's box */
     for (int a = 0; a < 3 && shared; a++) in &= v[a] >= o->box_lo[a] && v[a] <= o->box_hi[a];
-    if (!in) continue;
+    if (!in || tv < f->reach || (local && tv < reach_local(f, v))) continue;
     gr_err e2;
     if (gr_field_grad(f->phi, 1, &v[0], &v[1], &v[2], &g[0], &g[1], &g[2], &e2)) continue;
     double gn = sqrt(gr_dot3(g, g));
@@ -1157,13 +1156,14 @@ static int offset_checks(offset *f, const gr_offset_opts *o, const offset *lk, d
   nv = offset_vertices(f, o, lk != NULL, reach, vx, vy, vz);
   int rc = offset_check_thickness(f, o, nv, vx, vy, vz, t, maxt, e);
   if (rc == GR_OK) {
+    f->tmax = *maxt;
     f->reach = lk ? lk->reach : (o->mode == GR_DIST_EXACT ? reach_estimate(f, o, nv, vx, vy, vz) : 0);
     f->lrs = lk ? lk->lrs : NULL;
     if (!lk && o->periodic && o->mode == GR_DIST_EXACT) rc = lreach_slot_new(f, o, e);
-    /* the local reach only where the field will use it anyway (lreach_wanted)
-     * and its owner is complete (a member of a group: the table needs the
-     * owner's measured mesh deviation, set after these checks) */
-    if (rc == GR_OK) offset_touch_warning(f, o, lk != NULL, nv, vx, vy, vz, t, lk && f->lrs && *maxt >= f->reach);
+    /* the local reach only where the field will use it anyway and its owner
+     * is complete (a member of a group: the table needs the owner's measured
+     * mesh deviation, set after these checks) */
+    if (rc == GR_OK) offset_touch_warning(f, o, lk != NULL, nv, vx, vy, vz, t, lk && lreach_wanted(f));
   }
   free(buf);
   return rc;
@@ -1212,7 +1212,6 @@ gr_field *gr_offset_field_new(const gr_offset_opts *o, gr_err *e) {
   else if (dev && rc == GR_OK) dj.out = mesh_deviation(f);
   if (rc) { offset_free(f); return NULL; }
   f->mdev = lk ? lk->mdev : dj.out;
-  f->tmax = maxt;
   f->lreach_on = lreach_wanted(f);
   f->maxt = 1.2 * maxt + 2 * hmesh;
   f->tnear = 0.5 * maxt;

@@ -112,11 +112,11 @@ static size_t cell_of(const gr_reach *r, const double q[3]) {
   return cell_index(r->n, c[0], c[1], c[2]);
 }
 
-/* The steepest slope of t* at each of the nv points s, against
- * the points dmin to dmax from it (both known and below the cap; nearer
- * pairs show only the cut distances' 1 % rounding), found via the cells
- * within dmax (points sorted by cell: order, start): sl[i], -1 where no pair is; returns
- * the steepest of all (0 when none). */
+/* The steepest slope of t* at each of the nv points s, against the points
+ * dmin to dmax from it (both known and below the cap; nearer pairs show only
+ * the cut distances' 1 % rounding), found via the cells within dmax (points
+ * sorted by cell: order, start): sl[i], -1 where no pair is; returns the
+ * steepest of all (0 when none). */
 static double slopes(const gr_reach *r, const double *s, const double *t, size_t nv, double cap, double dmin,
                      double dmax, const size_t *order, const size_t *start, double *sl) {
   double worst = 0;

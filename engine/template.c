@@ -352,7 +352,7 @@ gr_template *gr_tmpl_to_record(const gr_job_opts *o, const gr_tmpl *t, const cha
   return r;
 }
 
-gr_tmpl *gr_tmpl_from_record(const gr_job_opts *o, const gr_template *r, int nl) {
+gr_tmpl *gr_tmpl_from_record(const gr_job_opts *o, const gr_template *r, int nl, int faces) {
   if (r->nlayers != nl || r->nslots != 2 || !r->extra) return NULL;
   for (int q = 0; q < nl; q++)
     if (!r->rings[q * 2] || !r->rings[q * 2 + 1] || !r->extra[q]) return NULL;
@@ -372,7 +372,7 @@ gr_tmpl *gr_tmpl_from_record(const gr_job_opts *o, const gr_template *r, int nl)
   for (int q = 0; q < nl; q++) {
     double lo[2] = {0, 0}, hi[2] = {o->cell[0], o->cell[1]};
     t->l[q].area = gr_clip_area(t->l[q].section, lo, hi);
-    if (face_lines(o, &t->l[q])) { gr_tmpl_free(t); return NULL; }
+    if (faces && face_lines(o, &t->l[q])) { gr_tmpl_free(t); return NULL; }
   }
   for (int i = 0; i < 4; i++) t->quality[i] = r->quality[i];
   t->qualified = r->qualified;

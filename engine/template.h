@@ -89,8 +89,9 @@ int gr_tmpl_layers(const gr_tmpl_in *in, gr_tmpl *t, const gr_field *f, const gr
 /* From tl->section (voxel-local window, as the templates slice it): the
  * contours and thin-wall scans clipped to the voxel (tl->paths), the hatch
  * region (tl->region) and, with `faces`, the side segments (tl->faces), each
- * created when NULL and cleared first. Used by the templates and, for a voxel next to a
- * differently graded one, by the assembly on the window's true section
+ * created when NULL and cleared first. Used by the templates and, for a
+ * voxel next to a differently graded one, by the assembly on the window's
+ * true section
  * (sharp = 1: a section with corners, the offsets' arcs of radius b around
  * them refined to the templates' chord tolerance; 0: as the templates). */
 int gr_tmpl_paths(const gr_job_opts *o, gr_tlayer *tl, int sharp, int faces, gr_err *e);
@@ -102,8 +103,9 @@ void gr_tmpl_qualify(const gr_job_opts *o, gr_tmpl *t, const char *key, gr_quali
                      char *why, size_t n);
 /* Template <-> knowledge-base record (sig: the class's signature, count:
  * voxels of the class, for the record's metadata). from_record returns NULL
- * when the record does not fit (nl layers expected) or memory runs out. */
+ * when the record does not fit (nl layers expected) or memory runs out; it
+ * makes the side segments with `faces` (as gr_tmpl_in.faces). */
 gr_template *gr_tmpl_to_record(const gr_job_opts *o, const gr_tmpl *t, const char *sig, int count, gr_err *e);
-gr_tmpl *gr_tmpl_from_record(const gr_job_opts *o, const gr_template *r, int nl);
+gr_tmpl *gr_tmpl_from_record(const gr_job_opts *o, const gr_template *r, int nl, int faces);
 
 #endif
