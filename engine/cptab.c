@@ -80,9 +80,13 @@ typedef struct near_ud {
   const double *q; /* 3 per window node */
   /* node_predict's stencil per window node, made when a point first needs
    * it (refined points crowd round the contours: most nodes serve several):
-   * pst 0 not made, 1 made (pco: 15 per node), 2 no model there */
+   * pst 0 not made, 1 made (pco: NCO per node), 2 no model there */
   unsigned char *pst;
   double *pco;
+  /* the nodes' signed distances and the thickness their values imply (NaN
+   * where a value is only a bound): T's slope along the section from them
+   * (NULL: none) */
+  const double *sd, *T;
 } near_ud;
 
 
@@ -126,9 +130,38 @@ static int node_hints(const near_ud *u, double x, double y, double *hi) {
   return nh;
 }
 
-/* The derivatives of node (i, j) into c (dx, dy, dxx, dyy, dxy, each 3);
- * 0 when it has no model. */
-static int node_model(const near_ud *u, int i, int j, double c[15]) {
+/* Per node of the stencil's model: the foot map's derivatives (dx, dy, dxx,
+ * dyy, dxy, each 3), then T's (node_tslope). */
+enum { NCO = 20 };
+
+/* The thickness at the foot points of node (i, j)'s 3 x 3 stencil (the
+ * distance part less the value, u->T), its derivatives dx, dy, dxx, dyy, dxy
+ * in c (per node step); NaN when a node's value is only a bound (beyond the
+ * band) or the stencil has nodes on both sides of H (a sheet's inside
+ * thickness may differ). The value's slope is the distance's less
+ * T's along the section: without T's, Newton steps on a graded sheet
+ * converge only linearly (by the ratio of the slopes, 1-2 % a step). */
+static void node_tslope(const near_ud *u, int i, int j, double c[5]) {
+  double T[3][3];
+  for (int k = 0; k < 5; k++) c[k] = NAN;
+  if (!u->T) return;
+  size_t n0 = (size_t)i + (size_t)u->nx * (size_t)j;
+  for (int a = -1; a <= 1; a++)
+    for (int b = -1; b <= 1; b++) {
+      size_t n = n0 + a + (ptrdiff_t)u->nx * b;
+      if (isnan(u->T[n]) || !(u->sd[n] * u->sd[n0] > 0)) return;
+      T[a + 1][b + 1] = u->T[n];
+    }
+  double t0 = T[1][1];
+  c[0] = 0.5 * (T[2][1] - T[0][1]);
+  c[1] = 0.5 * (T[1][2] - T[1][0]);
+  c[2] = T[2][1] - 2 * t0 + T[0][1];
+  c[3] = T[1][2] - 2 * t0 + T[1][0];
+  c[4] = 0.25 * (T[2][2] - T[2][0] - T[0][2] + T[0][0]);
+}
+
+/* The derivatives of node (i, j) into c (NCO); 0 when it has no model. */
+static int node_model(const near_ud *u, int i, int j, double c[NCO]) {
   const double *q[3][3]; /* q[a + 1][b + 1]: node (i + a, j + b) */
   for (int a = -1; a <= 1; a++)
     for (int b = -1; b <= 1; b++) {
@@ -146,6 +179,7 @@ static int node_model(const near_ud *u, int i, int j, double c[15]) {
     c[9 + k] = dyy;
     c[12 + k] = dxy;
   }
+  node_tslope(u, i, j, c + 15);
   return 1;
 }
 
@@ -155,15 +189,16 @@ static int node_model(const near_ud *u, int i, int j, double c[15]) {
  * the map's third derivative: tens of nanometres at h = 0.025 mm). NaN when a
  * node of the 3 x 3 stencil has none or when the stencil's closest points
  * jump (they lie on more than one patch of H). The stencil comes from
- * node_model, once per node (u->pst, u->pco); the sum is the same. */
-static void node_predict(const near_ud *u, double x, double y, double pr[3]) {
+ * node_model, once per node (u->pst, u->pco); the sum is the same. ts: T's
+ * slope along the section there (per mm; NaN when unknown). */
+static void node_predict(const near_ud *u, double x, double y, double pr[3], double ts[2]) {
   double fx = (x - u->lo[0]) / u->h, fy = (y - u->lo[1]) / u->h;
-  pr[0] = pr[1] = pr[2] = NAN;
+  pr[0] = pr[1] = pr[2] = ts[0] = ts[1] = NAN;
   /* the nearest node (i, j) must have all eight neighbours */
   if (!(fx >= 0.5 && fy >= 0.5 && fx < u->nx - 1.5 && fy < u->ny - 1.5)) return;
   int i = (int)(fx + 0.5), j = (int)(fy + 0.5);
   size_t n = (size_t)i + (size_t)u->nx * (size_t)j;
-  double *c = u->pco + 15 * n;
+  double *c = u->pco + NCO * n;
   if (!u->pst[n]) u->pst[n] = node_model(u, i, j, c) ? 1 : 2;
   if (u->pst[n] != 1) return;
   double s = fx - i, t = fy - j;
@@ -171,6 +206,9 @@ static void node_predict(const near_ud *u, double x, double y, double pr[3]) {
     double q0 = u->q[3 * n + k], dx = c[k], dy = c[3 + k], dxx = c[6 + k], dyy = c[9 + k], dxy = c[12 + k];
     pr[k] = q0 + s * dx + t * dy + 0.5 * s * s * dxx + s * t * dxy + 0.5 * t * t * dyy;
   }
+  const double *T = c + 15;
+  ts[0] = (T[0] + s * T[2] + t * T[4]) / u->h;
+  ts[1] = (T[1] + t * T[3] + s * T[4]) / u->h;
 }
 
 /* Value (and in-plane gradient when gx != NULL) at n points: from the
@@ -181,16 +219,21 @@ static int near_eval(void *ud_, size_t n, const double *x, const double *y, doub
                      double *gx, double *gy, gr_err *e) {
   const near_ud *u = ud_;
   enum { B = 256 };
-  double hint[3 * NH * B], zb[B], g[3 * B], pr[3 * B], fx[B], fy[B], fo[B], fg[3 * B];
+  double hint[3 * NH * B], zb[B], g[3 * B], pr[3 * B], fx[B], fy[B], fo[B], fg[3 * B], ts[2 * B];
   size_t id[B];
   for (size_t s = 0; s < n; s += B) {
     size_t m = n - s < B ? n - s : B, k = 0;
     for (size_t i = 0; i < m; i++) {
-      node_predict(u, x[s + i], y[s + i], pr + 3 * i);
+      node_predict(u, x[s + i], y[s + i], pr + 3 * i, ts + 2 * i);
       zb[i] = u->z;
     }
     int rc = gr_offset_eval_model(u->f, m, x + s, y + s, zb, pr, out + s, gx ? g : NULL, e);
     if (rc) return rc;
+    for (size_t i = 0; i < m && gx; i++) /* the model's foot: on the stencil's patch, T's slope from it */
+      if (!isnan(out[s + i]) && !isnan(ts[2 * i])) {
+        g[3 * i] -= ts[2 * i];
+        g[3 * i + 1] -= ts[2 * i + 1];
+      }
     for (size_t i = 0; i < m; i++) /* not accepted: solved from the hints */
       if (isnan(out[s + i])) {
         fx[k] = x[s + i];
@@ -367,10 +410,14 @@ static void node_shift(const gr_cptab *t, int nx, const double sh[3], size_t n, 
   off[2] = sh[2];
 }
 
+static double value_band(const gr_field *f, int cut, double h) {
+  double tmax = gr_offset_max_thickness(f);
+  return !cut && tmax >= 0 ? tmax + FAR_CELLS * h + 2 * gr_offset_herr(f) : INFINITY;
+}
+
 static int node_values(const gr_cptab *t, int q, const gr_field *f, int cut, double h, int nx, size_t nn,
                        const double sh[3], double *Q, double *sd, double *v, gr_err *e) {
-  double tmax = gr_offset_max_thickness(f), herr = gr_offset_herr(f);
-  double band = !cut && tmax >= 0 ? tmax + FAR_CELLS * h + 2 * herr : INFINITY;
+  double herr = gr_offset_herr(f), band = value_band(f, cut, h);
   int local = gr_offset_uses_local_reach(f);
   int rc = gr_offset_values_band(f, nn, Q, sd, band, v, e);
   /* the table's closest points may be up to 2 herr too far (its tolerance,
@@ -425,7 +472,7 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
   int cut = gr_domain_trim_parts(f, &f, &d, &skin);
   gr_slice_grid_size(so, &nx, &ny, &hx, &hy);
   size_t nn = (size_t)nx * ny;
-  double *Q = malloc((cut ? 21 : 20) * nn * sizeof *Q);
+  double *Q = malloc((6 + NCO + (cut ? 1 : 0)) * nn * sizeof *Q);
   unsigned char *pst = calloc(nn, 1);
   if (!Q || !pst) {
     free(Q);
@@ -436,14 +483,16 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
   double sh[3] = {o[0] - t->oref[0], o[1] - t->oref[1], o[2] - t->oref[2]};
   window_nodes(t, q, nx, ny, sh, Q, sd);
   int rc = node_values(t, q, f, cut, fmax(hx, hy), nx, nn, sh, Q, sd, v, e);
-  double *dv = Q + 20 * nn;
+  double *dv = Q + (6 + NCO) * nn, *T = Q + (5 + NCO) * nn;
+  if (!rc && !cut) gr_offset_implied_thickness(f, nn, sd, v, value_band(f, cut, fmax(hx, hy)), T);
   unsigned char *far = cut ? malloc(nn) : NULL;
   if (!rc && cut && !far) rc = gr_fail(e, GR_EMEM, "out of memory");
   if (!rc && cut) {
     rc = gr_domain_grid(d, skin, z, so->lo[0], so->lo[1], hx, hy, nx, ny, dv, far, e);
     if (!rc) gr_domain_trim_apply(nn, v, dv, skin, NULL);
   }
-  cut_ud u = {{f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q, pst, pco}, d, skin, hy, dv, far, sd, gr_offset_herr(f)};
+  cut_ud u = {{f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q, pst, pco, cut ? NULL : sd, cut ? NULL : T},
+              d, skin, hy, dv, far, sd, gr_offset_herr(f)};
   if (!rc)
     rc = cut ? gr_slice_grid(v, so, cut_fn, NULL, &u, out, e) : gr_slice_grid(v, so, near_fn, near_eval, &u.n, out, e);
   free(far);

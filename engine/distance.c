@@ -632,6 +632,12 @@ int gr_offset_uses_local_reach(const gr_field *f_) {
   return f && f->lreach_on;
 }
 
+void gr_offset_implied_thickness(const gr_field *f_, size_t n, const double *sd, const double *v, double band,
+                                 double *T) {
+  const offset *f = gr_field_callback_data(f_, offset_eval);
+  for (size_t i = 0; i < n; i++) T[i] = f && fabs(sd[i]) <= band ? offset_value(f, sd[i], 0, 0) - v[i] : NAN;
+}
+
 double gr_offset_herr(const gr_field *f_) {
   const offset *f = gr_field_callback_data(f_, offset_eval);
   return f ? f->herr : -1;

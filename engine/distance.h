@@ -92,6 +92,12 @@ int gr_offset_values(const gr_field *f, size_t n, double *q, double *sd, double 
  * value is read only for its sign, without copying q. */
 int gr_offset_values_band(const gr_field *f, size_t n, const double *q, const double *sd, double band, double *out,
                           gr_err *e);
+/* The thickness T[i] that makes offset field f's value v[i] at a point of
+ * signed distance sd[i] (the distance part less the value), n points; NaN
+ * where |sd| > band (mm: the values there are bounds, as
+ * gr_offset_values_band takes them) or when f is not an offset field. */
+void gr_offset_implied_thickness(const gr_field *f, size_t n, const double *sd, const double *v, double band,
+                                 double *T);
 /* H's error bound of offset field f (half a mesh spacing, mm), or -1 when
  * f is not one. */
 double gr_offset_herr(const gr_field *f);
