@@ -760,9 +760,12 @@ static int corner_marks(const gr_rings *r, unsigned char *ok, unsigned char *mus
     for (size_t k = 0; k < len && len >= 3 && !rc; k++) {
       size_t kp = (k + len - 1) % len, kn = (k + 1) % len;
       const double *P = p + 2 * kp, *T = p + 2 * k, *N = p + 2 * kn;
-      double ux = T[0] - P[0], uy = T[1] - P[1], vx = N[0] - T[0], vy = N[1] - T[1];
+      double ux = T[0] - P[0], uy = T[1] - P[1], vx = N[0] - T[0], vy = N[1] - T[1], dot = ux * vx + uy * vy;
+      /* most vertices turn far less than 15 degrees: seen from the squares
+       * (with room for their rounding), the exact test only near the limit */
+      if (dot > 0 && dot * dot > (CORNER_TURN * CORNER_TURN + 1e-9) * (ux * ux + uy * uy) * (vx * vx + vy * vy)) continue;
       double lu = hypot(ux, uy), lv = hypot(vx, vy);
-      if (!(lu > 0 && lv > 0) || ux * vx + uy * vy >= CORNER_TURN * lu * lv) continue;
+      if (!(lu > 0 && lv > 0) || dot >= CORNER_TURN * lu * lv) continue;
       if (w->on && (T[0] == w->lo[0] || T[0] == w->hi[0] || T[1] == w->lo[1] || T[1] == w->hi[1])) continue;
       for (int side = 0; side < 2 && !rc; side++) {
         const double *Q = side ? N : P;

@@ -75,18 +75,29 @@ static int offset_sharp(const gr_rings *in, double b, double cell, const double 
 
 /* Signed in-plane distance to the section boundary at t along the line
  * (x0 + t ux, y0 + t uy), negative inside, clamped to +-R. Only edges near the
- * line can be nearer than R; inside/outside from the crossings cr (sorted). */
+ * line can be nearer than R; inside/outside from the crossings cr (sorted).
+ * The candidate edges are sorted by where they start along the line (lo),
+ * each spanning at most span along it: only those within R of t along the
+ * line are measured (the others are farther than R). */
 typedef struct fline {
   double x0, y0, ux, uy, R;
-  const double *ed;  /* candidate edges (4 per edge) */
+  double *ed;        /* candidate edges (4 per edge) */
   size_t ne;
   const double *cr;  /* crossing parameters, sorted */
   size_t nc;
+  double *lo, span;  /* per candidate edge: its smaller coordinate along the line */
 } fline;
 
 static double fline_value(const fline *f, double t) {
   double px = f->x0 + t * f->ux, py = f->y0 + t * f->uy, best = f->R * f->R;
-  for (size_t k = 0; k < f->ne; k++) {
+  /* the first edge with lo >= t - R - span (lo sorted) */
+  size_t k0 = 0, k1 = f->ne;
+  while (k0 < k1) {
+    size_t m = (k0 + k1) / 2;
+    if (f->lo[m] < t - f->R - f->span) k0 = m + 1;
+    else k1 = m;
+  }
+  for (size_t k = k0; k < f->ne && f->lo[k] <= t + f->R; k++) {
     const double *a = f->ed + 4 * k;
     double ex = a[2] - a[0], ey = a[3] - a[1], L2 = ex * ex + ey * ey;
     double s = L2 > 0 ? ((px - a[0]) * ex + (py - a[1]) * ey) / L2 : 0;
@@ -102,6 +113,32 @@ static double fline_value(const fline *f, double t) {
 static int dbl_cmp(const void *a, const void *b) {
   double x = *(const double *)a, y = *(const double *)b;
   return (x > y) - (x < y);
+}
+
+/* Sort f's candidate edges by their start along the line (ties by the
+ * coordinates, so that the order is the same on every machine), filling
+ * f->lo and f->span; tmp holds ne * 5 doubles. */
+static int fline_edge_cmp(const void *a, const void *b) {
+  const double *x = a, *y = b;
+  for (int k = 0; k < 5; k++)
+    if (x[k] != y[k]) return x[k] < y[k] ? -1 : 1;
+  return 0;
+}
+
+static void fline_sort(fline *f, int vert, double *tmp) {
+  f->span = 0;
+  for (size_t k = 0; k < f->ne; k++) {
+    const double *a = f->ed + 4 * k;
+    double p = vert ? a[1] : a[0], q = vert ? a[3] : a[2];
+    tmp[5 * k] = fmin(p, q);
+    memcpy(tmp + 5 * k + 1, a, 4 * sizeof *a);
+    f->span = fmax(f->span, fabs(q - p));
+  }
+  qsort(tmp, f->ne, 5 * sizeof *tmp, fline_edge_cmp);
+  for (size_t k = 0; k < f->ne; k++) {
+    f->lo[k] = tmp[5 * k];
+    memcpy(f->ed + 4 * k, tmp + 5 * k + 1, 4 * sizeof *tmp);
+  }
 }
 
 /* The side segment [ta, tb] of the line, oriented like the contours (the
@@ -121,15 +158,16 @@ static int face_lines(const gr_job_opts *o, gr_tlayer *tl) {
   int nc = o->contours;
   if (nc <= 0 || r->npts == 0) return GR_OK;
   double R = b + (nc - 1) * d + 2 * step;
-  double *ed = malloc(4 * r->npts * sizeof *ed), *cr = malloc((r->npts + 1) * sizeof *cr);
+  double *ed = malloc(10 * r->npts * sizeof *ed + 1), *cr = malloc((r->npts + 1) * sizeof *cr);
   if (!ed || !cr) { free(ed); free(cr); return GR_EMEM; }
+  double *elo = ed + 4 * r->npts, *tmp = elo + r->npts;
   int rc = GR_OK;
   for (int side = 0; side < 4 && rc == GR_OK; side++) {
     int vert = side < 2; /* x = const */
     double Lc = vert ? o->cell[0] : o->cell[1], L = vert ? o->cell[1] : o->cell[0]; /* across, along */
     for (int k = 0; k < nc && rc == GR_OK; k++) {
       double c = b + k * d, pos = (side & 1) ? Lc - c : c;
-      fline f = {vert ? pos : 0, vert ? 0 : pos, vert ? 0 : 1, vert ? 1 : 0, R, ed, 0, cr, 0};
+      fline f = {vert ? pos : 0, vert ? 0 : pos, vert ? 0 : 1, vert ? 1 : 0, R, ed, 0, cr, 0, elo, 0};
       for (size_t i = 0; i < r->nrings; i++) {
         const double *p = gr_ring_xy(r, i);
         size_t n = gr_ring_len(r, i);
@@ -145,6 +183,7 @@ static int face_lines(const gr_job_opts *o, gr_tlayer *tl) {
         }
       }
       qsort(cr, f.nc, sizeof *cr, dbl_cmp);
+      fline_sort(&f, vert, tmp);
       /* intervals of [0, L] where the value is <= -c - GR_FACE_EPS: sample, then bisect the ends */
       int ns = (int)ceil(L / step);
       double ce = c + GR_FACE_EPS;

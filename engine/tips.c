@@ -222,6 +222,9 @@ static int grow_tip(const gr_rings *r, size_t i, size_t k, int ncap, gr_slice_fn
   *m = 0;
   double T[2] = {0.5 * (T1[0] + T2[0]), 0.5 * (T1[1] + T2[1])};
   double ax = P[0] - T1[0], ay = P[1] - T1[1], cx = N[0] - T2[0], cy = N[1] - T2[1];
+  /* a tip turns back: its neighbours lie on one side (the test below needs
+   * a positive dot product; most vertices fail it here, without the roots) */
+  if (!(ax * cx + ay * cy > 0)) return GR_OK;
   double la = hypot(ax, ay), lc = hypot(cx, cy), cap = hypot(T2[0] - T1[0], T2[1] - T1[1]);
   if (!(la > tol && lc > tol) || (ax * cx + ay * cy) < TIP_COS * la * lc || !in_window(w, T)) return GR_OK;
   if (ncap == 2 && !(cap > 0 && cap <= TIP_CAP && len >= 4)) return GR_OK;
