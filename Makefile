@@ -11,7 +11,9 @@ PKG_CFLAGS = $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 PKG_LIBS   = $(shell pkg-config --libs $(PKGS) 2>/dev/null)
 CFLAGS    ?= -O2 -g
 ALL_CFLAGS = $(CSTD) $(WARN) $(CFLAGS) -fPIC -pthread -Iengine -Ibuild/gen $(PKG_CFLAGS)
-LIBS       = $(PKG_LIBS) -lm -pthread -ldl
+# libmvec: glibc's vector math (vecmath.c), on x86-64
+MVEC      := $(if $(filter x86_64,$(shell uname -m)),-lmvec)
+LIBS       = $(PKG_LIBS) $(MVEC) -lm -pthread -ldl
 FUZZ_CC   ?= clang
 FUZZ_HAVE := $(shell command -v $(FUZZ_CC) >/dev/null 2>&1 && echo yes)
 SAN        = -O1 -g -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined

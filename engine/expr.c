@@ -4,6 +4,7 @@
  * CHUNK doubles per stack slot, so the interpreter overhead is paid once per
  * chunk, not per point. The compiled program is immutable (thread-safe). */
 #include "expr.h"
+#include "vecmath.h"
 #include <ctype.h>
 #include <math.h>
 #include <stdlib.h>
@@ -471,14 +472,14 @@ static void run_chunk(const gr_expr *x, size_t off, size_t m,
       for (size_t i = 0; i < m; i++) a[i] = (EXPR);          \
       break;
     UN(OP_NEG, -a[i])
-    UN(OP_SIN, sin(a[i]))
-    UN(OP_COS, cos(a[i]))
+    case OP_SIN: gr_vsin(m, a); break;
+    case OP_COS: gr_vcos(m, a); break;
     UN(OP_TAN, tan(a[i]))
     UN(OP_ASIN, asin(a[i]))
     UN(OP_ACOS, acos(a[i]))
     UN(OP_ATAN, atan(a[i]))
-    UN(OP_EXP, exp(a[i]))
-    UN(OP_LOG, log(a[i]))
+    case OP_EXP: gr_vexp(m, a); break;
+    case OP_LOG: gr_vlog(m, a); break;
     UN(OP_SQRT, sqrt(a[i]))
     UN(OP_ABS, fabs(a[i]))
     UN(OP_FLOOR, floor(a[i]))
