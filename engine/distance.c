@@ -720,8 +720,10 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
 }
 
 /* A predicted closest point x of p (near the true one, on its patch)
- * polished by projections of p onto phi's tangent plane, the gradients after
- * the first moved from its sines and cosines (gr_field_move_grad): q and the
+ * polished by projections of p onto phi's tangent plane, the first from phi's
+ * value v and gradient g0 at x (at: x's sines and cosines, made for a batch
+ * of points at once), the gradients after it moved from those
+ * (gr_field_move_grad): q and the
  * signed distance sd (+ on the gradient's side); 1 when accepted, 0 when not
  * (solve exactly), -1 on error.
  * Each projection moves the foot by D; it converges linearly, the ratio rho
@@ -739,10 +741,9 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
  * reach (then no other patch is nearer). */
 #define MODEL_ERR 1e-8
 #define MODEL_ROUNDS 4
-static int model_foot(const offset *f, const double p[3], const double x[3], double q[3], double *sd, gr_err *e) {
-  gr_field_at at;
-  double v, g[3], gp[3], o[3] = {x[0], x[1], x[2]}, prev = INFINITY, prev2 = 0;
-  if (gr_field_grad_at(f->phi, x, &v, g, &at, e)) return -1;
+static int model_foot(const offset *f, const double p[3], const double x[3], gr_field_at at, double v,
+                      const double g0[3], double q[3], double *sd, gr_err *e) {
+  double g[3] = {g0[0], g0[1], g0[2]}, gp[3], o[3] = {x[0], x[1], x[2]}, prev = INFINITY, prev2 = 0;
   for (int r = 0; r < MODEL_ROUNDS; r++) {
     if (r) {
       double dp[3] = {q[0] - o[0], q[1] - o[1], q[2] - o[2]};
@@ -777,10 +778,13 @@ int gr_offset_eval_model(const gr_field *f_, size_t n, const double *x, const do
   const offset *f = gr_field_callback_data(f_, offset_eval);
   if (!f) return gr_fail(e, GR_EARG, "offset evaluation needs an offset field");
   enum { B = 256 };
-  double pb[3 * B], sd[B], q[3 * B], vk[B];
-  size_t id[B];
+  double pb[3 * B], sd[B], q[3 * B], vk[B], cv[B], cg[3 * B], cp[3 * B];
+  size_t id[B], ic[B];
+  gr_field_at at[B];
   for (size_t s = 0; s < n; s += B) {
-    size_t m = n - s < B ? n - s : B, k = 0;
+    size_t m = n - s < B ? n - s : B, k = 0, nc = 0;
+    /* the points whose prediction may serve; the field's gradient at all
+     * their predictions at once */
     for (size_t i = 0; i < m; i++) {
       const double *c = pred + 3 * (s + i);
       double P[3] = {x[s + i], y[s + i], z[s + i]};
@@ -788,7 +792,14 @@ int gr_offset_eval_model(const gr_field *f_, size_t n, const double *x, const do
       if (f->mode != GR_DIST_EXACT || isnan(c[0])) continue;
       double dc = gr_dist3(P, c);
       if (!(dc < reach_for(f, c, dc))) continue;
-      int ok = model_foot(f, P, c, q + 3 * k, sd + k, e);
+      memcpy(cp + 3 * nc, c, 3 * sizeof *c);
+      ic[nc++] = i;
+    }
+    if (nc && gr_field_grad_at_n(f->phi, nc, cp, cv, cg, at, e)) return e->code;
+    for (size_t j = 0; j < nc; j++) {
+      size_t i = ic[j];
+      double P[3] = {x[s + i], y[s + i], z[s + i]};
+      int ok = model_foot(f, P, cp + 3 * j, at[j], cv[j], cg + 3 * j, q + 3 * k, sd + k, e);
       if (ok < 0) return e->code;
       if (!ok) continue;
       memcpy(pb + 3 * k, P, sizeof P);

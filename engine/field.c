@@ -3,6 +3,7 @@
  * allocated per call (not per point, and not on the C stack, so that deep
  * left-leaning unions cannot overflow a worker thread's stack). */
 #include "field.h"
+#include "vecmath.h"
 #include <math.h>
 #include <stdarg.h>
 #include <stdatomic.h>
@@ -684,6 +685,40 @@ int gr_field_grad_at(const gr_field *f, const double p[3], double *v, double g[3
   if (!isfinite(*v) || first_bad(3, g, NULL, NULL) >= 0)
     return gr_fail(e, GR_ENUM, "field %s or its gradient is not finite at x=%.6g, y=%.6g, z=%.6g", f->desc, p[0],
                    p[1], p[2]);
+  return GR_OK;
+}
+
+int gr_field_grad_at_n(const gr_field *f, size_t n, const double *p, double *v, double *g, gr_field_at *at,
+                       gr_err *e) {
+  if (!f) return gr_fail(e, GR_EARG, "field is missing (NULL)");
+  if (f->kind != K_TPMS) {
+    for (size_t i = 0; i < n; i++)
+      if (gr_field_grad_at(f, p + 3 * i, v + i, g + 3 * i, at + i, e)) return e->code;
+    return GR_OK;
+  }
+  enum { B = 128 };
+  double sn[3 * B], cs[3 * B];
+  for (size_t s = 0; s < n; s += B) {
+    size_t m = n - s < B ? n - s : B;
+    for (size_t i = 0; i < m; i++)
+      for (int a = 0; a < 3; a++)
+        sn[3 * i + a] = cs[3 * i + a] = f->w[a] * (p[3 * (s + i) + a] - (f->origin[a] + f->cell[a] / 2));
+    gr_vsin(3 * m, sn);
+    gr_vcos(3 * m, cs);
+    for (size_t i = 0; i < m; i++) {
+      gr_field_at *t = at + s + i;
+      double gl[3], *gi = g + 3 * (s + i);
+      memcpy(t->p, p + 3 * (s + i), sizeof t->p);
+      memcpy(t->sn, sn + 3 * i, sizeof t->sn);
+      memcpy(t->cs, cs + 3 * i, sizeof t->cs);
+      t->trig = 1;
+      v[s + i] = tpms_trig(f->surface, t->sn[0], t->cs[0], t->sn[1], t->cs[1], t->sn[2], t->cs[2], gl) - f->level;
+      for (int c = 0; c < 3; c++) gi[c] = f->w[c] * gl[c];
+      if (!isfinite(v[s + i]) || first_bad(3, gi, NULL, NULL) >= 0)
+        return gr_fail(e, GR_ENUM, "field %s or its gradient is not finite at x=%.6g, y=%.6g, z=%.6g", f->desc,
+                       t->p[0], t->p[1], t->p[2]);
+    }
+  }
   return GR_OK;
 }
 

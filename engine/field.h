@@ -108,6 +108,10 @@ typedef struct gr_field_at {
 } gr_field_at;
 /* gr_field_eval_grad at one point p, remembering p in *at. */
 int gr_field_grad_at(const gr_field *f, const double p[3], double *v, double g[3], gr_field_at *at, gr_err *e);
+/* The same at n points p (3 each) into v, g (3 each) and at (n): a TPMS's
+ * sines and cosines of all of them at once (vecmath.h). */
+int gr_field_grad_at_n(const gr_field *f, size_t n, const double *p, double *v, double *g, gr_field_at *at,
+                       gr_err *e);
 /* gr_field_hess_fd at p, remembering p in *at. */
 int gr_field_hess_fd_at(const gr_field *f, const double p[3], double h, double *v, double g[3], double hs[3][3],
                         gr_field_at *at, gr_err *e);
