@@ -59,10 +59,13 @@ void gr_sha256_hex(const void *data, size_t n, char out[65]);
  * crest to their end (2026-11-27), 12 since the local reach is tabled at
  * the surface's vertex spacing and model points that do not settle are
  * solved from their prediction (thick sheets' contours move by 0.3 nm,
- * hatch ends by up to 0.13 um, 2026-11-28). A template whose
+ * hatch ends by up to 0.13 um, 2026-11-28), 13 since a crossing ends after
+ * one evaluation where its Newton step's error bound allows and graded
+ * sheets' slopes include T's (contours move by up to 0.19 um where a chord
+ * check decides otherwise, 2026-11-28). A template whose
  * signature begins otherwise was built under an older rule: its key is never
  * asked for again, `gradus kb list` marks it stale and prune removes it. */
-#define GR_TEMPLATE_GEOMETRY "{gradus_template: 12, grading: voxel-owned,"
+#define GR_TEMPLATE_GEOMETRY "{gradus_template: 13, grading: voxel-owned,"
 /* 1 when a signature is a Gradus template's of an older engine geometry
  * (it begins with "{gradus_template: " but not with GR_TEMPLATE_GEOMETRY). */
 int gr_kb_stale(const char *signature);
