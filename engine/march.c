@@ -41,8 +41,9 @@ static double newton_error(double fa, double fb, double t, double f, double dt, 
  * Without gfn: Illinois (modified regula falsi), stopping when the bracket is
  * shorter than tol (mm), so the returned point is within tol of a root. With
  * gfn (value and gradient): Newton steps kept inside the bracket (Illinois
- * where a step leaves it), stopping when the Newton step is below tol.
- * P, Q: 2n coordinates; out: 2n coordinates. */
+ * where a step leaves it), stopping when the Newton step is below tol, or,
+ * for the first step, when its error bound is (newton_error, from the
+ * segment's end values fp, fq). P, Q: 2n coordinates; out: 2n coordinates. */
 static int roots_batch(gr_slice_fn fn, gr_slice_grad_fn gfn, void *ud, size_t n, const double *P,
                        const double *Q, const double *fp, const double *fq,
                        int refine, double tol, double *out, gr_err *e) {
