@@ -410,14 +410,16 @@ static void node_shift(const gr_cptab *t, int nx, const double sh[3], size_t n, 
   off[2] = sh[2];
 }
 
+/* How far from H (|sd|, mm) the nodes' values are exact (the band above;
+ * everywhere for a trimmed field); grid spacing h. node_values takes it. */
 static double value_band(const gr_field *f, int cut, double h) {
   double tmax = gr_offset_max_thickness(f);
   return !cut && tmax >= 0 ? tmax + FAR_CELLS * h + 2 * gr_offset_herr(f) : INFINITY;
 }
 
-static int node_values(const gr_cptab *t, int q, const gr_field *f, int cut, double h, int nx, size_t nn,
+static int node_values(const gr_cptab *t, int q, const gr_field *f, double band, int nx, size_t nn,
                        const double sh[3], double *Q, double *sd, double *v, gr_err *e) {
-  double herr = gr_offset_herr(f), band = value_band(f, cut, h);
+  double herr = gr_offset_herr(f);
   int local = gr_offset_uses_local_reach(f);
   int rc = gr_offset_values_band(f, nn, Q, sd, band, v, e);
   /* the table's closest points may be up to 2 herr too far (its tolerance,
@@ -482,9 +484,10 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
   double *sd = Q + 3 * nn, *v = Q + 4 * nn, *pco = Q + 5 * nn;
   double sh[3] = {o[0] - t->oref[0], o[1] - t->oref[1], o[2] - t->oref[2]};
   window_nodes(t, q, nx, ny, sh, Q, sd);
-  int rc = node_values(t, q, f, cut, fmax(hx, hy), nx, nn, sh, Q, sd, v, e);
+  double band = value_band(f, cut, fmax(hx, hy));
+  int rc = node_values(t, q, f, band, nx, nn, sh, Q, sd, v, e);
   double *dv = Q + (6 + NCO) * nn, *T = Q + (5 + NCO) * nn;
-  if (!rc && !cut) gr_offset_implied_thickness(f, nn, sd, v, value_band(f, cut, fmax(hx, hy)), T);
+  if (!rc && !cut) gr_offset_implied_thickness(f, nn, sd, v, band, T);
   unsigned char *far = cut ? malloc(nn) : NULL;
   if (!rc && cut && !far) rc = gr_fail(e, GR_EMEM, "out of memory");
   if (!rc && cut) {

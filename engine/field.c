@@ -667,25 +667,33 @@ int gr_field_move_grad(const gr_field *f, gr_field_at *at, const double dp[3], d
   return GR_OK;
 }
 
+/* A TPMS's phase along axis a at coordinate x. */
+static double tpms_phase(const gr_field *f, int a, double x) { return f->w[a] * (x - (f->origin[a] + f->cell[a] / 2)); }
+
+/* A TPMS's value and gradient from the phases' sines and cosines in *at
+ * (at->p the point), which becomes valid for moves (trig = 1). */
+static int tpms_value_at(const gr_field *f, gr_field_at *at, double *v, double g[3], gr_err *e) {
+  double gl[3];
+  at->trig = 1;
+  *v = tpms_trig(f->surface, at->sn[0], at->cs[0], at->sn[1], at->cs[1], at->sn[2], at->cs[2], gl) - f->level;
+  for (int c = 0; c < 3; c++) g[c] = f->w[c] * gl[c];
+  if (!isfinite(*v) || first_bad(3, g, NULL, NULL) >= 0)
+    return gr_fail(e, GR_ENUM, "field %s or its gradient is not finite at x=%.6g, y=%.6g, z=%.6g", f->desc, at->p[0],
+                   at->p[1], at->p[2]);
+  return GR_OK;
+}
+
 int gr_field_grad_at(const gr_field *f, const double p[3], double *v, double g[3], gr_field_at *at, gr_err *e) {
   if (!f) return gr_fail(e, GR_EARG, "field is missing (NULL)");
   memcpy(at->p, p, sizeof at->p);
   at->trig = 0;
   if (f->kind != K_TPMS) return gr_field_eval_grad(f, 1, &p[0], &p[1], &p[2], v, &g[0], &g[1], &g[2], e);
-  const double *w = f->w;
-  double gl[3];
   for (int a = 0; a < 3; a++) {
-    double X = w[a] * (p[a] - (f->origin[a] + f->cell[a] / 2));
+    double X = tpms_phase(f, a, p[a]);
     at->sn[a] = sin(X);
     at->cs[a] = cos(X);
   }
-  at->trig = 1;
-  *v = tpms_trig(f->surface, at->sn[0], at->cs[0], at->sn[1], at->cs[1], at->sn[2], at->cs[2], gl) - f->level;
-  for (int c = 0; c < 3; c++) g[c] = w[c] * gl[c];
-  if (!isfinite(*v) || first_bad(3, g, NULL, NULL) >= 0)
-    return gr_fail(e, GR_ENUM, "field %s or its gradient is not finite at x=%.6g, y=%.6g, z=%.6g", f->desc, p[0],
-                   p[1], p[2]);
-  return GR_OK;
+  return tpms_value_at(f, at, v, g, e);
 }
 
 int gr_field_grad_at_n(const gr_field *f, size_t n, const double *p, double *v, double *g, gr_field_at *at,
@@ -701,22 +709,15 @@ int gr_field_grad_at_n(const gr_field *f, size_t n, const double *p, double *v, 
   for (size_t s = 0; s < n; s += B) {
     size_t m = n - s < B ? n - s : B;
     for (size_t i = 0; i < m; i++)
-      for (int a = 0; a < 3; a++)
-        sn[3 * i + a] = cs[3 * i + a] = f->w[a] * (p[3 * (s + i) + a] - (f->origin[a] + f->cell[a] / 2));
+      for (int a = 0; a < 3; a++) sn[3 * i + a] = cs[3 * i + a] = tpms_phase(f, a, p[3 * (s + i) + a]);
     gr_vsin(3 * m, sn);
     gr_vcos(3 * m, cs);
     for (size_t i = 0; i < m; i++) {
       gr_field_at *t = at + s + i;
-      double gl[3], *gi = g + 3 * (s + i);
       memcpy(t->p, p + 3 * (s + i), sizeof t->p);
       memcpy(t->sn, sn + 3 * i, sizeof t->sn);
       memcpy(t->cs, cs + 3 * i, sizeof t->cs);
-      t->trig = 1;
-      v[s + i] = tpms_trig(f->surface, t->sn[0], t->cs[0], t->sn[1], t->cs[1], t->sn[2], t->cs[2], gl) - f->level;
-      for (int c = 0; c < 3; c++) gi[c] = f->w[c] * gl[c];
-      if (!isfinite(v[s + i]) || first_bad(3, gi, NULL, NULL) >= 0)
-        return gr_fail(e, GR_ENUM, "field %s or its gradient is not finite at x=%.6g, y=%.6g, z=%.6g", f->desc,
-                       t->p[0], t->p[1], t->p[2]);
+      if (tpms_value_at(f, t, v + s + i, g + 3 * (s + i), e)) return e->code;
     }
   }
   return GR_OK;
