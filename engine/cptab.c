@@ -87,6 +87,7 @@ typedef struct near_ud {
    * where a value is only a bound): T's slope along the section from them
    * (NULL: none) */
   const double *sd, *T;
+  int smooth; /* the field's thickness is smooth (gr_offset_smooth_thickness) */
 } near_ud;
 
 
@@ -191,16 +192,26 @@ static int node_model(const near_ud *u, int i, int j, double c[NCO]) {
  * jump (they lie on more than one patch of H). The stencil comes from
  * node_model, once per node (u->pst, u->pco); the sum is the same. ts: T's
  * slope along the section there (per mm; NaN when unknown). */
-static void node_predict(const near_ud *u, double x, double y, double pr[3], double ts[2]) {
+/* The stencil of the node nearest (x, y) (its index in *n), or NULL when it
+ * has none (a node of its 3 x 3 has no closest point, or they jump). */
+static const double *node_stencil(const near_ud *u, double x, double y, size_t *n) {
   double fx = (x - u->lo[0]) / u->h, fy = (y - u->lo[1]) / u->h;
-  pr[0] = pr[1] = pr[2] = ts[0] = ts[1] = NAN;
   /* the nearest node (i, j) must have all eight neighbours */
-  if (!(fx >= 0.5 && fy >= 0.5 && fx < u->nx - 1.5 && fy < u->ny - 1.5)) return;
+  if (!(fx >= 0.5 && fy >= 0.5 && fx < u->nx - 1.5 && fy < u->ny - 1.5)) return NULL;
   int i = (int)(fx + 0.5), j = (int)(fy + 0.5);
-  size_t n = (size_t)i + (size_t)u->nx * (size_t)j;
-  double *c = u->pco + NCO * n;
-  if (!u->pst[n]) u->pst[n] = node_model(u, i, j, c) ? 1 : 2;
-  if (u->pst[n] != 1) return;
+  *n = (size_t)i + (size_t)u->nx * (size_t)j;
+  double *c = u->pco + NCO * *n;
+  if (!u->pst[*n]) u->pst[*n] = node_model(u, i, j, c) ? 1 : 2;
+  return u->pst[*n] == 1 ? c : NULL;
+}
+
+static void node_predict(const near_ud *u, double x, double y, double pr[3], double ts[2]) {
+  size_t n;
+  pr[0] = pr[1] = pr[2] = ts[0] = ts[1] = NAN;
+  const double *c = node_stencil(u, x, y, &n);
+  if (!c) return;
+  double fx = (x - u->lo[0]) / u->h, fy = (y - u->lo[1]) / u->h;
+  int i = (int)(fx + 0.5), j = (int)(fy + 0.5);
   double s = fx - i, t = fy - j;
   for (int k = 0; k < 3; k++) {
     double q0 = u->q[3 * n + k], dx = c[k], dy = c[3 + k], dxx = c[6 + k], dyy = c[9 + k], dxy = c[12 + k];
@@ -209,6 +220,17 @@ static void node_predict(const near_ud *u, double x, double y, double pr[3], dou
   const double *T = c + 15;
   ts[0] = (T[0] + s * T[2] + t * T[4]) / u->h;
   ts[1] = (T[1] + t * T[3] + s * T[4]) / u->h;
+}
+
+/* Whether the section is smooth between its points a and b
+ * (gr_slice_smooth_fn): the thickness is, and the stencils of the nodes
+ * nearest a and b (3 x 3 nodes each, about a chord's length around it) have
+ * closest points on one patch of H, so that no medial surface (where a thick
+ * sheet's walls meet at a corner) passes between. */
+static int near_smooth(void *ud, const double a[2], const double b[2]) {
+  const near_ud *u = ud;
+  size_t n;
+  return u->smooth && node_stencil(u, a[0], a[1], &n) && node_stencil(u, b[0], b[1], &n);
 }
 
 /* Value (and in-plane gradient when gx != NULL) at n points: from the
@@ -221,11 +243,18 @@ static int near_eval(void *ud_, size_t n, const double *x, const double *y, doub
   enum { B = 256 };
   double hint[3 * NH * B], zb[B], g[3 * B], pr[3 * B], fx[B], fy[B], fo[B], fg[3 * B], ts[2 * B];
   size_t id[B];
+  char hinted[B];
   for (size_t s = 0; s < n; s += B) {
     size_t m = n - s < B ? n - s : B, k = 0;
     for (size_t i = 0; i < m; i++) {
       node_predict(u, x[s + i], y[s + i], pr + 3 * i, ts + 2 * i);
       zb[i] = u->z;
+      hinted[i] = 0;
+      if (isnan(pr[3 * i])) { /* no prediction: the nearest node's hint as the model's start */
+        double hk[3 * NH];
+        if (node_hints(u, x[s + i], y[s + i], hk) > 0) memcpy(pr + 3 * i, hk, 3 * sizeof *hk);
+        hinted[i] = 1;
+      }
     }
     int rc = gr_offset_eval_model(u->f, m, x + s, y + s, zb, pr, out + s, gx ? g : NULL, e);
     if (rc) return rc;
@@ -239,7 +268,7 @@ static int near_eval(void *ud_, size_t n, const double *x, const double *y, doub
         fx[k] = x[s + i];
         fy[k] = y[s + i];
         double *hk = hint + 3 * NH * k;
-        if (isnan(pr[3 * i])) {
+        if (hinted[i]) {
           node_hints(u, fx[k], fy[k], hk);
         } else {
           /* a prediction: the stencil's closest points lie on one patch, and
@@ -494,10 +523,13 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
     rc = gr_domain_grid(d, skin, z, so->lo[0], so->lo[1], hx, hy, nx, ny, dv, far, e);
     if (!rc) gr_domain_trim_apply(nn, v, dv, skin, NULL);
   }
-  cut_ud u = {{f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q, pst, pco, cut ? NULL : sd, cut ? NULL : T},
+  cut_ud u = {{f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q, pst, pco, cut ? NULL : sd, cut ? NULL : T,
+               !cut && gr_offset_smooth_thickness(f)},
               d, skin, hy, dv, far, sd, gr_offset_herr(f)};
+  gr_slice_opts sm = *so; /* chords judged by their neighbours where the section is smooth */
+  sm.smooth = near_smooth;
   if (!rc)
-    rc = cut ? gr_slice_grid(v, so, cut_fn, NULL, &u, out, e) : gr_slice_grid(v, so, near_fn, near_eval, &u.n, out, e);
+    rc = cut ? gr_slice_grid(v, so, cut_fn, NULL, &u, out, e) : gr_slice_grid(v, &sm, near_fn, near_eval, &u.n, out, e);
   free(far);
   free(pst);
   free(Q);

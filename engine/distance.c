@@ -651,6 +651,18 @@ static int expr_constant(const gr_expr *x) {
   return 1;
 }
 
+/* Whether T is smooth (twice differentiable) along H: a smooth expression
+ * of x, y, z only (u, v, w are clamped to the voxel: T kinks where a foot
+ * crosses its face), no field or density table (interpolated). */
+static int expr_smooth_xyz(const gr_expr *x) {
+  return !x || (gr_expr_smooth(x) && !gr_expr_uses(x, 3) && !gr_expr_uses(x, 4) && !gr_expr_uses(x, 5));
+}
+
+int gr_offset_smooth_thickness(const gr_field *f_) {
+  const offset *f = gr_field_callback_data(f_, offset_eval);
+  return f && f->mode == GR_DIST_EXACT && !f->tfield && !f->dens && expr_smooth_xyz(f->t) && expr_smooth_xyz(f->tin);
+}
+
 double gr_offset_value_floor(const gr_field *f_, double dlb) {
   const offset *f = gr_field_callback_data(f_, offset_eval);
   if (!f || f->kind != GR_OFFSET_SHEET) return -INFINITY;
@@ -741,6 +753,19 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
  * reach (then no other patch is nearer). */
 #define MODEL_ERR 1e-8
 #define MODEL_ROUNDS 4
+
+/* The projections did not settle in MODEL_ROUNDS (d kappa near 1: thick
+ * sheets, points near a centre of curvature): finish from the last foot q
+ * by Newton's method with phi's Hessian (exact_newton, quadratic from a
+ * start this near), then the reach at the foot decides as for an accepted
+ * projection (a foot within it is the closest point). sd keeps its side. */
+static int newton_finish(const offset *f, const double p[3], double q[3], double *sd) {
+  if (!exact_newton(f, p, q)) return 0;
+  double d = gr_dist3(p, q);
+  if (!(d < reach_for(f, q, d))) return 0;
+  *sd = *sd < 0 ? -d : d;
+  return 1;
+}
 static int model_foot(const offset *f, const double p[3], const double x[3], gr_field_at at, double v,
                       const double g0[3], double q[3], double *sd, gr_err *e) {
   double g[3] = {g0[0], g0[1], g0[2]}, gp[3], o[3] = {x[0], x[1], x[2]}, prev = INFINITY, prev2 = 0;
@@ -760,17 +785,20 @@ static int model_foot(const offset *f, const double p[3], const double x[3], gr_
       D2 += (q[a] - o[a]) * (q[a] - o[a]);
     }
     *sd = s * sqrt(g2);
-    double d = fabs(*sd), D = sqrt(D2), rho = D / prev, R = reach_for(f, q, d);
-    if (!(d < R)) return 0;
+    double d = fabs(*sd), D = sqrt(D2), rho = D / prev;
     if (r > 0 && (D == 0 || (rho < 0.5 && rho * D < 1e-6 * f->L * (1 - rho)))) {
+      /* the reach at the last foot only: the earlier ones do not decide */
+      double R = reach_for(f, q, d);
+      if (!(d < R)) return 0;
       double dg[3] = {g[0] - gp[0], g[1] - gp[1], g[2] - gp[2]};
       double K = fmax(1 / (R - d), sqrt(gr_dot3(dg, dg) / (gr_dot3(gp, gp) * prev2)));
       return K * D2 <= 2 * MODEL_ERR * f->L;
     }
+    if (r > 0 && rho >= 0.5) break; /* too slow to settle in the rounds left */
     prev = D;
     prev2 = D2;
   }
-  return 0;
+  return newton_finish(f, p, q, sd);
 }
 
 int gr_offset_eval_model(const gr_field *f_, size_t n, const double *x, const double *y, const double *z,

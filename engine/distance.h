@@ -113,6 +113,11 @@ double gr_offset_keeps_foot(const gr_field *f, const double q[3]);
  * -INFINITY for a network (or not an offset field), whose value inside is
  * negative however far. */
 double gr_offset_value_floor(const gr_field *f, double dlb);
+/* Whether offset field f's thickness is smooth along H (exact mode; a
+ * thickness expression of x, y, z without abs, min, max or floor, or a
+ * constant): its sections' boundaries then turn without corners wherever
+ * the closest points do not jump. 0 when f is not an offset field. */
+int gr_offset_smooth_thickness(const gr_field *f);
 /* The strict check for one point p with closest point q (in place) and
  * signed distance sd (in place): where a patch of H is
  * nearer than q by more than 0.1 um (also one within twice the mesh's

@@ -410,6 +410,14 @@ int gr_expr_uses(const gr_expr *x, int i) {
   return 0;
 }
 
+int gr_expr_smooth(const gr_expr *x) {
+  for (size_t k = 0; k < x->ncode; k++) {
+    int op = x->code[k].op;
+    if (op == OP_ABS || op == OP_FLOOR || op == OP_MIN || op == OP_MAX) return 0;
+  }
+  return 1;
+}
+
 /* Run the program over m <= CHUNK points starting at offset off; stack is
  * maxdepth columns of CHUNK doubles. */
 static void run_chunk(const gr_expr *x, size_t off, size_t m,

@@ -21,6 +21,9 @@ void gr_expr_free(gr_expr *x); /* NULL is fine */
 const char *gr_expr_source(const gr_expr *x);
 /* Whether the expression reads variable i. */
 int gr_expr_uses(const gr_expr *x, int i);
+/* Whether the expression is smooth wherever it is finite: none of abs, min,
+ * max, floor (whose kinks and steps no sample of their neighbourhood shows). */
+int gr_expr_smooth(const gr_expr *x);
 
 /* out[k] = value at point k, vars[i][k] the i-th variable. A NaN or infinite
  * result fails with GR_ENUM naming the expression and the point's variables. */

@@ -30,7 +30,12 @@ typedef struct gr_ms_grid {
  * corner it cut off is looked for (four cells of the grid contoured), and
  * how far a tip is followed; tips = 1: tips of slivers are followed along
  * the field's crest to their end (tips.c; field sections, not offsets). */
-typedef struct gr_ms_win { int on; double lo[2], hi[2], reach; int tips; } gr_ms_win;
+typedef struct gr_ms_win {
+  int on;
+  double lo[2], hi[2], reach;
+  int tips;
+  gr_slice_smooth_fn smooth; /* or NULL: gr_slice_opts.smooth, with fn's ud */
+} gr_ms_win;
 
 /* Parts of the zero set hidden between nodes of one sign (hidden.c): where
  * probes of suspect edges find the other sign by more than 1 um, g is

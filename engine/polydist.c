@@ -555,7 +555,7 @@ int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
     rc = gr_ms_contour(&g, pd_fn, pd_gfn, &d, 1, tol, out, e);
   }
   if (!rc && chord_tol > 0) {
-    gr_ms_win w = {0, {0, 0}, {0, 0}, 4 * fmax(g.hx, g.hy), 0};
+    gr_ms_win w = {0, {0, 0}, {0, 0}, 4 * fmax(g.hx, g.hy), 0, NULL};
     rc = gr_ms_chord_refine(out, pd_fn, pd_gfn, &d, tol, chord_tol, &w, e);
   }
   if (!rc) rc = gr_rings_nest(out, e);

@@ -86,7 +86,7 @@ static int slice_sampled(gr_ms_grid *g, const gr_slice_opts *o, gr_slice_fn fn, 
   int rc = gr_ms_unhide(g, 0, NULL, fn, ud, &fv, e);
   if (!rc) rc = gr_ms_contour(g, fn, gfn, ud, o->refine, o->tol, out, e);
   if (!rc && o->chord_tol > 0) {
-    gr_ms_win w = {1, {o->lo[0], o->lo[1]}, {o->hi[0], o->hi[1]}, reach, 1};
+    gr_ms_win w = {1, {o->lo[0], o->lo[1]}, {o->hi[0], o->hi[1]}, reach, 1, o->smooth};
     rc = gr_ms_chord_refine(out, fn, gfn, ud, o->tol, o->chord_tol, &w, e);
   }
   if (!rc) rc = gr_rings_nest(out, e);

@@ -8,6 +8,10 @@
 #include "mesh.h"
 #include "paths.h"
 
+/* Whether the zero set is smooth (its curvature continuous) between its
+ * points a and b: no corner, no second branch (see gr_slice_opts). */
+typedef int (*gr_slice_smooth_fn)(void *ud, const double a[2], const double b[2]);
+
 typedef struct gr_slice_opts {
   double lo[2], hi[2]; /* window in the plane, mm */
   double cell;         /* marching-squares cell size, mm (> 0) */
@@ -15,6 +19,10 @@ typedef struct gr_slice_opts {
   double tol;          /* crossing tolerance, mm (default 1e-6) */
   double chord_tol;    /* > 0: insert refined midpoints where a chord is more
                           than chord_tol (mm) from the true zero set; 0 = off */
+  /* gr_slice_grid only (NULL: every chord is checked on fn): where it says
+   * the zero set is smooth between a chord's ends, a chord whose neighbours'
+   * circles put it within chord_tol / 2 of the curve is not checked */
+  gr_slice_smooth_fn smooth;
 } gr_slice_opts;
 gr_slice_opts gr_slice_defaults(void);
 

@@ -332,7 +332,8 @@ static int sheet_points(int n, double *px, double *py, double *pz) {
   return k;
 }
 
-static gr_field *p_sheet(int res, int mode, gr_err *e) {
+/* A P sheet of one cell PL with half-thickness texpr. */
+static gr_field *p_sheet_t(int res, int mode, const char *texpr, gr_err *e) {
   gr_field *phi = gr_field_tpms("primitive", PL, NULL, 0, e);
   if (!phi) return NULL;
   gr_offset_opts o = gr_offset_defaults();
@@ -341,10 +342,31 @@ static gr_field *p_sheet(int res, int mode, gr_err *e) {
   for (int a = 0; a < 3; a++) { o.box_lo[a] = 0; o.box_hi[a] = PL; }
   o.res = res;
   o.mode = mode;
-  o.thickness_expr = "0.1*(2*sin(pi*(w+1)/4)+1)";
+  o.thickness_expr = texpr;
   gr_field *g = gr_offset_field_new(&o, e);
   gr_field_free(phi);
   return g;
+}
+
+static gr_field *p_sheet(int res, int mode, gr_err *e) {
+  return p_sheet_t(res, mode, "0.1*(2*sin(pi*(w+1)/4)+1)", e);
+}
+
+/* Which thicknesses let a section's chords be judged by their neighbours
+ * (gr_offset_smooth_thickness): smooth expressions of x, y, z in exact mode;
+ * not u, v, w (clamped to the voxel), abs/min/max/floor, or mesh mode. */
+TEST(smooth_thickness) {
+  gr_err e;
+  const char *src[] = {"0.1+0.04*sin(x/3)*cos(y/2.5)+0.004*z", "0.12", "0.1*(2*sin(pi*(w+1)/4)+1)", "0.1+0.01*abs(x-1)",
+                       "0.1+0.01*x"};
+  int want[] = {1, 1, 0, 0, 0};
+  for (int k = 0; k < 5; k++) {
+    gr_field *g = p_sheet_t(20, k == 4 ? GR_DIST_MESH : GR_DIST_EXACT, src[k], &e);
+    CHECK(g != NULL, "%s", e.msg);
+    if (g) CHECK(gr_offset_smooth_thickness(g) == want[k], "'%s'%s: smooth %d, expected %d", src[k],
+                 k == 4 ? " (mesh mode)" : "", gr_offset_smooth_thickness(g), want[k]);
+    gr_field_free(g);
+  }
 }
 
 TEST(graded_p_sheet) {
@@ -1060,6 +1082,7 @@ int main(void) {
   RUN(bvh_sphere);
   RUN(bvh_errors);
   RUN(cylinder_network);
+  RUN(smooth_thickness);
   RUN(graded_p_sheet);
   RUN(thickness_errors);
   RUN(voxel_owned_uvw);

@@ -104,6 +104,19 @@ TEST(constants_and_uses) {
   CHECK_NEAR(out, 5 + M_PI, 1e-15);
   gr_expr_free(ex);
   gr_expr_free(NULL);
+  /* smooth: no abs, min, max or floor (kinks and steps) */
+  const char *smooth[] = {"sin(u)*cos(w) + sqrt(2 + u^2)", "exp(-u) / (1 + w^2)"};
+  const char *kinked[] = {"abs(u)", "min(u, w) + 1", "max(u, 0.1)", "floor(u*4)/4", "0.1 + 0*abs(w)"};
+  for (int k = 0; k < 2; k++) {
+    ex = gr_expr_compile(smooth[k], 2, vars, 1, cn, cv, &e);
+    CHECK(ex && gr_expr_smooth(ex), "'%s' is smooth", smooth[k]);
+    gr_expr_free(ex);
+  }
+  for (int k = 0; k < 5; k++) {
+    ex = gr_expr_compile(kinked[k], 2, vars, 1, cn, cv, &e);
+    CHECK(ex && !gr_expr_smooth(ex), "'%s' is not smooth", kinked[k]);
+    gr_expr_free(ex);
+  }
 }
 
 TEST(error_messages) {

@@ -119,26 +119,30 @@ static int circ_fn(void *ud, size_t n, const double *x, const double *y, double 
   return circ_grad(ud, n, x, y, out, NULL, NULL, e);
 }
 
+/* The circle sampled on the grid of window [0, 2]^2 with cell `cell` (the
+ * caller frees it), its options in *o. */
+static double *circle_grid(const circ *c, double cell, gr_slice_opts *o) {
+  *o = gr_slice_defaults();
+  o->lo[0] = o->lo[1] = 0;
+  o->hi[0] = o->hi[1] = 2;
+  o->cell = cell;
+  o->chord_tol = 0;
+  int nx, ny;
+  double hx, hy;
+  gr_slice_grid_size(o, &nx, &ny, &hx, &hy);
+  double *v = malloc((size_t)nx * ny * sizeof *v);
+  for (int j = 0; v && j < ny; j++)
+    for (int i = 0; i < nx; i++) v[i + (size_t)nx * j] = hypot(o->lo[0] + i * hx - c->cx, o->lo[1] + j * hy - c->cy) - c->R;
+  return v;
+}
+
 /* Contour the circle on a 0.025 mm grid (no chord pass): the farthest ring
  * point from it (mm), the points evaluated per crossing in *per. */
 static double circle_crossings(circ *c, double *per, gr_err *e) {
-  gr_slice_opts o = gr_slice_defaults();
-  o.lo[0] = o.lo[1] = 0;
-  o.hi[0] = o.hi[1] = 2;
-  o.cell = 0.025;
-  o.chord_tol = 0;
-  int nx, ny;
-  double hx, hy;
-  gr_slice_grid_size(&o, &nx, &ny, &hx, &hy);
-  size_t nn = (size_t)nx * ny;
-  double *v = malloc(nn * sizeof *v), worst = INFINITY;
+  gr_slice_opts o;
+  double *v = circle_grid(c, 0.025, &o), worst = INFINITY;
   gr_rings *r = gr_rings_new();
   *per = INFINITY;
-  for (int j = 0; v && j < ny; j++)
-    for (int i = 0; i < nx; i++) {
-      double x = o.lo[0] + i * hx, y = o.lo[1] + j * hy;
-      v[i + (size_t)nx * j] = hypot(x - c->cx, y - c->cy) - c->R;
-    }
   c->npts = 0;
   if (v && r && gr_slice_grid(v, &o, circ_fn, circ_grad, c, r, e) == GR_OK && r->npts) {
     worst = 0;
@@ -173,8 +177,63 @@ TEST(newton_one_evaluation_when_smooth) {
   }
 }
 
+static int always_smooth(void *ud, const double a[2], const double b[2]) {
+  (void)ud; (void)a; (void)b;
+  return 1;
+}
+
+/* A circle's section with the chord pass (0.2 um, grid 0.05 mm), chords
+ * judged by their neighbours where `smooth` says so: the farthest any chord
+ * strays from the circle (its sagitta, exact for a chord of a circle), and
+ * the points evaluated (all calls) in *npts. */
+static double circle_chords(circ *c, gr_slice_smooth_fn smooth, size_t *npts, gr_err *e) {
+  gr_slice_opts o;
+  double *v = circle_grid(c, 0.05, &o), worst = INFINITY;
+  gr_rings *r = gr_rings_new();
+  o.chord_tol = 2e-4;
+  o.smooth = smooth;
+  c->npts = 0;
+  if (v && r && gr_slice_grid(v, &o, circ_fn, circ_grad, c, r, e) == GR_OK && r->npts) {
+    worst = 0;
+    for (size_t i = 0; i < r->nrings; i++) {
+      size_t len = gr_ring_len(r, i);
+      const double *q = gr_ring_xy(r, i);
+      for (size_t k = 0; k < len; k++) {
+        const double *a = q + 2 * k, *b = q + 2 * ((k + 1) % len);
+        double L = hypot(b[0] - a[0], b[1] - a[1]);
+        /* ends off the circle by their crossing tolerance at most: the sagitta of the chord */
+        worst = fmax(worst, c->R - sqrt(fmax(0, c->R * c->R - 0.25 * L * L)));
+      }
+    }
+  }
+  *npts = c->npts;
+  gr_rings_free(r);
+  free(v);
+  return worst;
+}
+
+/* Chords of a smooth curve judged by the circles through their neighbours:
+ * where the section is smooth, chords within half the tolerance by both
+ * circles are not evaluated; every chord of the result still lies within
+ * the chord tolerance of the true circle, and fewer points are evaluated. */
+TEST(chords_judged_by_neighbours) {
+  gr_err e;
+  for (int k = 0; k < 2; k++) {
+    circ c = {1.0013, 0.9871, 0.3 + 0.4 * k, 1, 0};
+    size_t all, fewer;
+    double w0 = circle_chords(&c, NULL, &all, &e), w1 = circle_chords(&c, always_smooth, &fewer, &e);
+    printf("  info: circle R %.1f mm: %zu points evaluated checking every chord, %zu judging by neighbours; "
+           "farthest chord %.3g / %.3g um\n", c.R, all, fewer, w0 * 1e3, w1 * 1e3);
+    CHECK(w0 <= 2e-4 && w1 <= 2e-4, "circle R %g: a chord strays %.3g / %.3g um (tolerance 0.2 um)", c.R, w0 * 1e3,
+          w1 * 1e3);
+    CHECK(fewer < all, "circle R %g: judging chords by their neighbours evaluated %zu points, checking all %zu", c.R,
+          fewer, all);
+  }
+}
+
 int main(void) {
   RUN(newton_kink_before_root);
   RUN(newton_one_evaluation_when_smooth);
+  RUN(chords_judged_by_neighbours);
   DONE();
 }
