@@ -165,6 +165,7 @@ static int thick(const offset *f, const gr_expr *x, size_t n, const double *cons
 }
 
 static int exact_newton(const offset *f, const double p[3], double q[3]);
+static int exact_newton_tol(const offset *f, const double p[3], double q[3], double tol);
 
 /* Newton projection of x onto phi = 0 (a few steps); 0 if it fails. */
 static int project(const offset *f, double x[3]) {
@@ -284,7 +285,10 @@ static int solve4(double A[4][4], double b[4]) {
  * phi by differences of gradients). Converges quadratically from a start
  * near the answer (a neighbour's closest point); returns 0 (q unchanged)
  * when it does not converge, so the caller can fall back. */
-static int exact_newton(const offset *f, const double p[3], double q[3]) {
+static int exact_newton(const offset *f, const double p[3], double q[3]) { return exact_newton_tol(f, p, q, 1e-7); }
+
+/* exact_newton stopping when the foot is within tol L (1e-7 there). */
+static int exact_newton_tol(const offset *f, const double p[3], double q[3], double tol) {
   double x[3] = {q[0], q[1], q[2]}, lam = 0, prev = INFINITY;
   gr_err e;
   double gs[3][3], dp[3] = {0, 0, 0};
@@ -315,11 +319,11 @@ static int exact_newton(const offset *f, const double p[3], double q[3]) {
     /* the Hessian is frozen at the start, so convergence is linear with a
      * tiny rate rho (the start is within a grid cell): the error left after
      * a step dx is about rho dx, rho measured as the ratio of the last two
-     * steps. Done when that is below 1e-7 L (or the step itself below
-     * 1e-6 L, as before: then the error left is below 1e-9 L) */
+     * steps. Done when that is below tol L (or the step itself below
+     * 10 tol L: then the error left is below tol L / 100) */
     double rho = dx / prev;
     prev = dx;
-    if (dx < 1e-6 * f->L || (it > 0 && rho < 0.1 && rho * dx < 1e-7 * f->L * (1 - rho))) {
+    if (dx < 10 * tol * f->L || (it > 0 && rho < 0.1 && rho * dx < tol * f->L * (1 - rho))) {
       double dq = sqrt((x[0] - q[0]) * (x[0] - q[0]) + (x[1] - q[1]) * (x[1] - q[1]) + (x[2] - q[2]) * (x[2] - q[2]));
       if (!(dq < 0.25 * f->L)) return 0;
       memcpy(q, x, sizeof x);
@@ -756,11 +760,12 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
 
 /* The projections did not settle in MODEL_ROUNDS (d kappa near 1: thick
  * sheets, points near a centre of curvature): finish from the last foot q
- * by Newton's method with phi's Hessian (exact_newton, quadratic from a
- * start this near), then the reach at the foot decides as for an accepted
- * projection (a foot within it is the closest point). sd keeps its side. */
+ * by Newton's method with phi's Hessian (quadratic from a start this near),
+ * to the projections' own tolerance (a foot within 1e-6 L), then the reach at
+ * the foot decides as for an accepted projection (a foot within it is the
+ * closest point). sd keeps its side. */
 static int newton_finish(const offset *f, const double p[3], double q[3], double *sd) {
-  if (!exact_newton(f, p, q)) return 0;
+  if (!exact_newton_tol(f, p, q, 1e-6)) return 0;
   double d = gr_dist3(p, q);
   if (!(d < reach_for(f, q, d))) return 0;
   *sd = *sd < 0 ? -d : d;

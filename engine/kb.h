@@ -64,11 +64,13 @@ void gr_sha256_hex(const void *data, size_t n, char out[65]);
  * sheets' slopes include T's (contours move by up to 0.19 um where a chord
  * check decides otherwise, 2026-11-28), 14 since points whose projections
  * settle slowly finish by Newton's method on their own patch (thick sheets'
- * contours move by up to 0.11 um, hatch ends by up to 0.17 um, 2026-11-29).
+ * contours move by up to 0.11 um, hatch ends by up to 0.17 um, 2026-11-29),
+ * 15 since that Newton finish stops at the projections' own tolerance (a
+ * foot within 1e-6 L: contours move by 0.4 nm, 2026-11-29).
  * A template whose
  * signature begins otherwise was built under an older rule: its key is never
  * asked for again, `gradus kb list` marks it stale and prune removes it. */
-#define GR_TEMPLATE_GEOMETRY "{gradus_template: 14, grading: voxel-owned,"
+#define GR_TEMPLATE_GEOMETRY "{gradus_template: 15, grading: voxel-owned,"
 /* 1 when a signature is a Gradus template's of an older engine geometry
  * (it begins with "{gradus_template: " but not with GR_TEMPLATE_GEOMETRY). */
 int gr_kb_stale(const char *signature);
