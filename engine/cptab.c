@@ -87,7 +87,6 @@ typedef struct near_ud {
    * where a value is only a bound): T's slope along the section from them
    * (NULL: none) */
   const double *sd, *T;
-  int smooth; /* the field's thickness is smooth (gr_offset_smooth_thickness) */
 } near_ud;
 
 
@@ -192,13 +191,16 @@ static int node_model(const near_ud *u, int i, int j, double c[NCO]) {
  * jump (they lie on more than one patch of H). The stencil comes from
  * node_model, once per node (u->pst, u->pco); the sum is the same. ts: T's
  * slope along the section there (per mm; NaN when unknown). */
-/* The stencil of the node nearest (x, y) (its index in *n), or NULL when it
- * has none (a node of its 3 x 3 has no closest point, or they jump). */
-static const double *node_stencil(const near_ud *u, double x, double y, size_t *n) {
+/* The stencil of the node nearest (x, y) (its index in *n, (x, y)'s offset
+ * from it in node steps in st), or NULL when it has none (a node of its
+ * 3 x 3 has no closest point, or they jump). */
+static const double *node_stencil(const near_ud *u, double x, double y, size_t *n, double st[2]) {
   double fx = (x - u->lo[0]) / u->h, fy = (y - u->lo[1]) / u->h;
   /* the nearest node (i, j) must have all eight neighbours */
   if (!(fx >= 0.5 && fy >= 0.5 && fx < u->nx - 1.5 && fy < u->ny - 1.5)) return NULL;
   int i = (int)(fx + 0.5), j = (int)(fy + 0.5);
+  st[0] = fx - i;
+  st[1] = fy - j;
   *n = (size_t)i + (size_t)u->nx * (size_t)j;
   double *c = u->pco + NCO * *n;
   if (!u->pst[*n]) u->pst[*n] = node_model(u, i, j, c) ? 1 : 2;
@@ -207,12 +209,11 @@ static const double *node_stencil(const near_ud *u, double x, double y, size_t *
 
 static void node_predict(const near_ud *u, double x, double y, double pr[3], double ts[2]) {
   size_t n;
+  double st[2];
   pr[0] = pr[1] = pr[2] = ts[0] = ts[1] = NAN;
-  const double *c = node_stencil(u, x, y, &n);
+  const double *c = node_stencil(u, x, y, &n, st);
   if (!c) return;
-  double fx = (x - u->lo[0]) / u->h, fy = (y - u->lo[1]) / u->h;
-  int i = (int)(fx + 0.5), j = (int)(fy + 0.5);
-  double s = fx - i, t = fy - j;
+  double s = st[0], t = st[1];
   for (int k = 0; k < 3; k++) {
     double q0 = u->q[3 * n + k], dx = c[k], dy = c[3 + k], dxx = c[6 + k], dyy = c[9 + k], dxy = c[12 + k];
     pr[k] = q0 + s * dx + t * dy + 0.5 * s * s * dxx + s * t * dxy + 0.5 * t * t * dyy;
@@ -223,14 +224,15 @@ static void node_predict(const near_ud *u, double x, double y, double pr[3], dou
 }
 
 /* Whether the section is smooth between its points a and b
- * (gr_slice_smooth_fn): the thickness is, and the stencils of the nodes
+ * (gr_slice_smooth_fn, given only where the thickness is): the stencils of the nodes
  * nearest a and b (3 x 3 nodes each, about a chord's length around it) have
  * closest points on one patch of H, so that no medial surface (where a thick
  * sheet's walls meet at a corner) passes between. */
 static int near_smooth(void *ud, const double a[2], const double b[2]) {
   const near_ud *u = ud;
   size_t n;
-  return u->smooth && node_stencil(u, a[0], a[1], &n) && node_stencil(u, b[0], b[1], &n);
+  double st[2];
+  return node_stencil(u, a[0], a[1], &n, st) && node_stencil(u, b[0], b[1], &n, st);
 }
 
 /* Value (and in-plane gradient when gx != NULL) at n points: from the
@@ -249,12 +251,11 @@ static int near_eval(void *ud_, size_t n, const double *x, const double *y, doub
     for (size_t i = 0; i < m; i++) {
       node_predict(u, x[s + i], y[s + i], pr + 3 * i, ts + 2 * i);
       zb[i] = u->z;
-      hinted[i] = 0;
-      if (isnan(pr[3 * i])) { /* no prediction: the nearest node's hint as the model's start */
-        double hk[3 * NH];
-        if (node_hints(u, x[s + i], y[s + i], hk) > 0) memcpy(pr + 3 * i, hk, 3 * sizeof *hk);
-        hinted[i] = 1;
-      }
+      /* no prediction: the four nodes' hints (kept in slot i for the exact
+       * solve below), the nearest node's as the model's start */
+      hinted[i] = isnan(pr[3 * i]);
+      if (hinted[i] && node_hints(u, x[s + i], y[s + i], hint + 3 * NH * i) > 0)
+        memcpy(pr + 3 * i, hint + 3 * NH * i, 3 * sizeof *pr);
     }
     int rc = gr_offset_eval_model(u->f, m, x + s, y + s, zb, pr, out + s, gx ? g : NULL, e);
     if (rc) return rc;
@@ -269,7 +270,8 @@ static int near_eval(void *ud_, size_t n, const double *x, const double *y, doub
         fy[k] = y[s + i];
         double *hk = hint + 3 * NH * k;
         if (hinted[i]) {
-          node_hints(u, fx[k], fy[k], hk);
+          /* slot i to slot k <= i: later points' slots are above i, untouched */
+          memmove(hk, hint + 3 * NH * i, 3 * NH * sizeof *hk);
         } else {
           /* a prediction: the stencil's closest points lie on one patch, and
            * it is a nearer start than any node's */
@@ -523,11 +525,10 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
     rc = gr_domain_grid(d, skin, z, so->lo[0], so->lo[1], hx, hy, nx, ny, dv, far, e);
     if (!rc) gr_domain_trim_apply(nn, v, dv, skin, NULL);
   }
-  cut_ud u = {{f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q, pst, pco, cut ? NULL : sd, cut ? NULL : T,
-               !cut && gr_offset_smooth_thickness(f)},
+  cut_ud u = {{f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q, pst, pco, cut ? NULL : sd, cut ? NULL : T},
               d, skin, hy, dv, far, sd, gr_offset_herr(f)};
   gr_slice_opts sm = *so; /* chords judged by their neighbours where the section is smooth */
-  sm.smooth = near_smooth;
+  sm.smooth = !cut && gr_offset_smooth_thickness(f) ? near_smooth : NULL;
   if (!rc)
     rc = cut ? gr_slice_grid(v, so, cut_fn, NULL, &u, out, e) : gr_slice_grid(v, &sm, near_fn, near_eval, &u.n, out, e);
   free(far);

@@ -165,7 +165,6 @@ static int thick(const offset *f, const gr_expr *x, size_t n, const double *cons
 }
 
 static int exact_newton(const offset *f, const double p[3], double q[3]);
-static int exact_newton_tol(const offset *f, const double p[3], double q[3], double tol);
 
 /* Newton projection of x onto phi = 0 (a few steps); 0 if it fails. */
 static int project(const offset *f, double x[3]) {
@@ -283,11 +282,9 @@ static int solve4(double A[4][4], double b[4]) {
 /* Closest point of phi = 0 to p from a nearby start q: Newton on the
  * Lagrange conditions x - p + lambda grad phi(x) = 0, phi(x) = 0 (Hessian of
  * phi by differences of gradients). Converges quadratically from a start
- * near the answer (a neighbour's closest point); returns 0 (q unchanged)
- * when it does not converge, so the caller can fall back. */
-static int exact_newton(const offset *f, const double p[3], double q[3]) { return exact_newton_tol(f, p, q, 1e-7); }
-
-/* exact_newton stopping when the foot is within tol L (1e-7 there). */
+ * near the answer (a neighbour's closest point); done when the foot is
+ * within tol L; returns 0 (q unchanged) when it does not converge, so the
+ * caller can fall back. */
 static int exact_newton_tol(const offset *f, const double p[3], double q[3], double tol) {
   double x[3] = {q[0], q[1], q[2]}, lam = 0, prev = INFINITY;
   gr_err e;
@@ -332,6 +329,9 @@ static int exact_newton_tol(const offset *f, const double p[3], double q[3], dou
   }
   return 0;
 }
+
+/* exact_newton_tol to 1e-7 L. */
+static int exact_newton(const offset *f, const double p[3], double q[3]) { return exact_newton_tol(f, p, q, 1e-7); }
 
 static double reach_for(const offset *f, const double q[3], double d);
 static double reach_local(const offset *f, const double q[3]);

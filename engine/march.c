@@ -603,12 +603,6 @@ static int corner_ok(const gr_rings *r, size_t i, size_t k, const double *R, dou
   return 1;
 }
 
-/* Chord accuracy passes: for each ring segment not yet checked (*okp[i] = 0
- * for the chord from point i), find the zero of fn on the normal line
- * through the chord midpoint (bracket +-half the chord); where it lies more
- * than chord_tol from the midpoint, or the chord is marked in must (NULL:
- * none; the first pass only), insert it. Repeats until no insertion (at
- * most 12 passes). Rings in `r` and *okp are rewritten. */
 /* The sagitta of chord a-b on the circle through p, a and b (0 when they
  * are collinear, INFINITY when the chord does not fit the circle or two
  * points coincide). */
@@ -638,6 +632,12 @@ static int chord_fine_by_circles(const gr_rings *r, size_t i, size_t k, double c
   return circle_sagitta(p, a, b) <= 0.5 * chord_tol && circle_sagitta(a, b, c) <= 0.5 * chord_tol;
 }
 
+/* Chord accuracy passes: for each ring segment not yet checked (*okp[i] = 0
+ * for the chord from point i), find the zero of fn on the normal line
+ * through the chord midpoint (bracket +-half the chord); where it lies more
+ * than chord_tol from the midpoint, or the chord is marked in must (NULL:
+ * none; the first pass only), insert it. Repeats until no insertion (at
+ * most 12 passes). Rings in `r` and *okp are rewritten. */
 static int chord_passes(gr_rings *r, unsigned char **okp, const unsigned char *must, gr_slice_fn fn,
                         gr_slice_grad_fn gfn, void *ud, double tol, double chord_tol, const gr_ms_win *w, gr_err *e) {
   int rc = GR_OK;
