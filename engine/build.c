@@ -171,7 +171,7 @@ static int layers_item(void *arg_, int item, gr_err *e) {
   gr_job *j = a->j;
   int c = a->wc[item];
   const gr_vclass *cl = &j->cls[c];
-  gr_tmpl_in in = {&j->o, &j->grid, {0, 0, 0}, 0, cl->trimmed, cl->edge};
+  gr_tmpl_in in = {&j->o, &j->grid, {0, 0, 0}, 0, cl->edge};
   int i, jj, k;
   gr_grid_origin(&j->grid, cl->rep, in.vo);
   gr_grid_ijk(&j->grid, cl->rep, &i, &jj, &k);

@@ -482,7 +482,7 @@ static int stepped_layer(const gr_job *j, const fs_key *k, gr_tlayer **out, gr_e
   if (rc == GR_OK) {
     st->area = own->area;
     st->q[0] = st->q[1] = st->q[2] = NAN;
-    rc = gr_tmpl_paths(&j->o, st, 1, 1, e);
+    rc = gr_tmpl_paths(&j->o, st, 1, e);
   }
   if (rc == GR_OK) *out = st;
   else { gr_fstep_free(st); free(st); }

@@ -66,11 +66,14 @@ void gr_sha256_hex(const void *data, size_t n, char out[65]);
  * settle slowly finish by Newton's method on their own patch (thick sheets'
  * contours move by up to 0.11 um, hatch ends by up to 0.17 um, 2026-11-29),
  * 15 since that Newton finish stops at the projections' own tolerance (a
- * foot within 1e-6 L: contours move by 0.4 nm, 2026-11-29).
+ * foot within 1e-6 L: contours move by 0.4 nm, 2026-11-29), 16 since
+ * every in-plane offset refines its chords to the chord tolerance (contours
+ * had cut the offset's arcs around the section's corners by up to 3 um
+ * between their exact vertices, 2026-11-29).
  * A template whose
  * signature begins otherwise was built under an older rule: its key is never
  * asked for again, `gradus kb list` marks it stale and prune removes it. */
-#define GR_TEMPLATE_GEOMETRY "{gradus_template: 15, grading: voxel-owned,"
+#define GR_TEMPLATE_GEOMETRY "{gradus_template: 16, grading: voxel-owned,"
 /* 1 when a signature is a Gradus template's of an older engine geometry
  * (it begins with "{gradus_template: " but not with GR_TEMPLATE_GEOMETRY). */
 int gr_kb_stale(const char *signature);

@@ -70,6 +70,10 @@ int gr_slice_mesh(const gr_mesh *m, double z, gr_rings *closed,
  * 1e-6 mm. */
 int gr_offset_rings(const gr_rings *in, double b, double cell, gr_rings *out,
                     gr_err *e);
+/* The chord tolerance of the engine's sections and contours (mm): a chord
+ * deviates from the true curve by at most this; refined midpoints are
+ * inserted where it would not. */
+#define GR_CHORD_TOL 2e-4
 /* The same with the crossing tolerance tol (mm, > 0), the chord option
  * chord_tol (mm, 0 = off) of gr_slice_opts, and box (x0 y0 x1 y1, mm, or
  * NULL: everywhere): parts narrower than the grid are looked for only

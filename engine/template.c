@@ -48,22 +48,8 @@ gr_tmpl *gr_tmpl_new(int ja, int jb) {
   return t;
 }
 
-/* Chords of sections and contours deviate from the true curve by at most
- * this (mm): refined midpoints are inserted where they would not. */
-#define CHORD_TOL 2e-4
 /* Hatch regions are simplified to this (mm): hatch ends move by at most this. */
 #define REGION_TOL 1e-4
-
-static int offset_fine(const gr_rings *in, double b, double cell, const double *box, gr_rings *out, gr_err *e) {
-  return gr_offset_rings_opt(in, b, cell, 1e-6, 0, box, out, e);
-}
-
-/* The same with chords refined: a section with corners (a step at a face)
- * has offsets with arcs of radius b, too tight for chords of a grid cell. */
-static int offset_sharp(const gr_rings *in, double b, double cell, const double *box, gr_rings *out, gr_err *e) {
-  return gr_offset_rings_opt(in, b, cell, 1e-6, CHORD_TOL, box, out, e);
-}
-
 
 /* ---- voxels on the part's boundary ----
  * The part's section in a boundary voxel is the lattice section A cut by the
@@ -253,14 +239,13 @@ double gr_tmpl_window(const gr_job_opts *o) {
 }
 
 /* Contour, thin-wall and hatch-region options of the templates. */
-static gr_hatch_opts tmpl_hatch_opts(const gr_job_opts *opt, int sharp) {
+static gr_hatch_opts tmpl_hatch_opts(const gr_job_opts *opt) {
   gr_hatch_opts ho = gr_hatch_defaults();
   ho.spacing = opt->hatch;
   ho.beam_offset = opt->beam_offset;
   ho.contours = opt->contours;
   ho.cell = opt->slice_cell;
   ho.pattern = GR_PARALLEL;
-  ho.offset = sharp ? offset_sharp : offset_fine;
   /* the window's cut edges are not walls: thin walls only where they reach the voxel */
   ho.thin_box[0] = ho.thin_box[1] = -opt->beam_offset;
   ho.thin_box[2] = opt->cell[0] + opt->beam_offset;
@@ -268,9 +253,9 @@ static gr_hatch_opts tmpl_hatch_opts(const gr_job_opts *opt, int sharp) {
   return ho;
 }
 
-int gr_tmpl_paths(const gr_job_opts *opt, gr_tlayer *tl, int sharp, int faces, gr_err *e) {
+int gr_tmpl_paths(const gr_job_opts *opt, gr_tlayer *tl, int faces, gr_err *e) {
   double box_lo[2] = {0, 0}, box_hi[2] = {opt->cell[0], opt->cell[1]};
-  gr_hatch_opts ho = tmpl_hatch_opts(opt, sharp);
+  gr_hatch_opts ho = tmpl_hatch_opts(opt);
   if (!tl->region && !(tl->region = gr_rings_new())) return gr_fail(e, GR_EMEM, "out of memory");
   if (!tl->paths && !(tl->paths = gr_layer_new(0))) return gr_fail(e, GR_EMEM, "out of memory");
   gr_rings_clear(tl->region);
@@ -317,7 +302,7 @@ int gr_tmpl_layers(const gr_tmpl_in *in, gr_tmpl *t, const gr_field *f, const gr
   so.hi[1] = o[1] + L[1] + m;
   so.cell = h;
   so.refine = 1;
-  so.chord_tol = CHORD_TOL;
+  so.chord_tol = GR_CHORD_TOL;
   double box_lo[2] = {0, 0}, box_hi[2] = {L[0], L[1]};
   int rc = GR_OK;
   for (int q = qa; q < qb && rc == GR_OK; q++) {
@@ -330,7 +315,7 @@ int gr_tmpl_layers(const gr_tmpl_in *in, gr_tmpl *t, const gr_field *f, const gr
     if ((rc = tab ? gr_cptab_slice(tab, f, o, q, z, &so, tl->section, e) : gr_slice_field(f, z, &so, tl->section, e))) break;
     gr_rings_translate(tl->section, -o[0], -o[1]);
     tl->area = gr_clip_area(tl->section, box_lo, box_hi);
-    if ((rc = gr_tmpl_paths(opt, tl, in->sharp, in->faces, e))) break;
+    if ((rc = gr_tmpl_paths(opt, tl, in->faces, e))) break;
     tl->q[0] = tl->q[1] = tl->q[2] = NAN;
     if (rc == GR_OK && opt->verify) rc = verify_template_layer(opt, tl, gr_layer_angle(opt, g0 + t->j0 + q), e);
   }

@@ -56,9 +56,6 @@ typedef struct gr_tmpl_in {
   const gr_grid *grid;
   double vo[3];         /* the voxel's min corner, mm */
   int g0;               /* the voxel row's first global layer */
-  int sharp;            /* 1: the section has corners (a trimmed voxel: the domain's faces
-                           meet each other and the lattice); its contours are offset with
-                           chords refined, as at face steps, so convex corners stay sharp */
   int faces;            /* 1: the side segments too (a voxel of the class lies on the part's
                            boundary); 0: tl->faces left NULL (no assembly reads them) */
 } gr_tmpl_in;
@@ -91,10 +88,9 @@ int gr_tmpl_layers(const gr_tmpl_in *in, gr_tmpl *t, const gr_field *f, const gr
  * region (tl->region) and, with `faces`, the side segments (tl->faces), each
  * created when NULL and cleared first. Used by the templates and, for a
  * voxel next to a differently graded one, by the assembly on the window's
- * true section
- * (sharp = 1: a section with corners, the offsets' arcs of radius b around
- * them refined to the templates' chord tolerance; 0: as the templates). */
-int gr_tmpl_paths(const gr_job_opts *o, gr_tlayer *tl, int sharp, int faces, gr_err *e);
+ * true section. The offsets' chords are refined to the templates' chord
+ * tolerance, as the sections' are. */
+int gr_tmpl_paths(const gr_job_opts *o, gr_tlayer *tl, int faces, gr_err *e);
 /* A built template's quality (worst verified layer; NaN when o->verify is 0)
  * and qualification: the contract's targets (doc/contract.md) when verified, then the recipe's rule
  * fn (may be NULL). Sets t->quality and t->qualified; why: the reason when

@@ -17,7 +17,9 @@
 --   hatch out = hatch length outside the solid / hatch length, in the middle voxel
 --              (exact: each vector cut where it crosses the true section's boundary)
 --   dev      = | in-plane distance of each contour point of the middle voxel to the
---              true section boundary - b | (exact boundary, steps included; max, p99, mean);
+--              true section boundary - b | (exact boundary, steps included; max, p99, mean):
+--              the vertices and `chords` points evenly spaced inside every segment
+--              (default 3: the laser follows the chord, not only its ends);
 --              points more than `recheck` um off that boundary are measured again
 --              on the voxels' own fields sampled every 0.1 um around the point
 --              (gradus.steptruth.local_deviation), counted as `rechecked`
@@ -43,6 +45,8 @@ local recheck = gradus.param("recheck", 1, { unit = "um", min = 0, max = 1000,
   help = "contour points off the reference by more than this are measured again on the voxels' own fields (0.1 um grid)" })
 local recheck_max = gradus.param("recheck_max", 300, { integer = true, min = 0, max = 100000,
   help = "at most this many points a layer measured again (the worst first)" })
+local chords = gradus.param("chords", 3, { integer = true, min = 0, max = 20,
+  help = "points measured inside every contour segment, besides its vertices" })
 local first = gradus.param("first", 1, { integer = true, min = 1, max = 500, help = "first layer checked" })
 local last = gradus.param("last", 0, { integer = true, min = 0, max = 500, help = "last layer checked (0: the block's last)" })
 local d, t, b, L = 0.05, 0.04, 0.025, 2.0
@@ -109,7 +113,7 @@ for _, surface in ipairs(list(surfaces)) do
         local r = gradus.hatch.verify(sec, layer, { track = d, pixel = d / 20, offset = b, spacing = d, contours = 1,
           clip_lo = { L, L }, clip_hi = { 2 * L, 2 * L } })
         local E = truth.edges(V, z, { lo = { L - 0.15, L - 0.15 }, hi = { 2 * L + 0.15, 2 * L + 0.15 } }, d / 8)
-        local pts = truth.points(layer, E, b, { L, L, 2 * L, 2 * L })
+        local pts = truth.points(layer, E, b, { L, L, 2 * L, 2 * L }, chords)
         -- points off the reference by more than `recheck`: measured again on the
         -- voxels' own fields, on a 0.1 um grid around the point (the reference's
         -- boundary is ill-conditioned where the field is nearly flat at zero)

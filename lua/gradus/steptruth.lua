@@ -86,11 +86,34 @@ function M.edges(voxels, z, window, cell, opts)
   return E, stats
 end
 
---- M.points(layer, E, b, box) -> list of {x, y, dev}: for every point of the
+-- the vertices x1, y1, x2, y2, ... of a polyline with n points evenly spaced
+-- inside each of its segments added after the segment's first vertex
+local function contour_points(P, n)
+  if n <= 0 then return P end
+  local out = {}
+  for q = 1, #P, 2 do
+    out[#out + 1] = P[q]
+    out[#out + 1] = P[q + 1]
+    if q + 3 <= #P then
+      for s = 1, n do
+        local f = s / (n + 1)
+        out[#out + 1] = P[q] + f * (P[q + 2] - P[q])
+        out[#out + 1] = P[q + 1] + f * (P[q + 3] - P[q + 1])
+      end
+    end
+  end
+  return out
+end
+
+--- M.points(layer, E, b, box, chords) -> list of {x, y, dev}: for every point of the
 -- layer's contours (thin-wall lines excluded), optionally only those inside
 -- box = {x0, y0, x1, y1}, its distance to the segments E minus b (mm, signed:
--- negative where the boundary is nearer than b).
-function M.points(layer, E, b, box)
+-- negative where the boundary is nearer than b). chords = n (default 0) also
+-- measures n points evenly spaced inside every segment of a contour: the
+-- laser follows the straight chord between two vertices, and where the
+-- offset curves (an arc of radius b around a corner of the section) the
+-- chord's middle lies off it although both ends lie on it.
+function M.points(layer, E, b, box, chords)
   local h = 0.05
   local grid = {}
   local function key(i, j) return i * 1000003 + j end
@@ -109,7 +132,7 @@ function M.points(layer, E, b, box)
   local pts = {}
   for _, bk in ipairs(layer:blocks()) do
     if bk.kind == "contour" and not bk.thin then
-      local P = bk.points
+      local P = contour_points(bk.points, chords or 0)
       for q = 1, #P, 2 do
         local px, py = P[q], P[q + 1]
         if not box or (px >= box[1] and px <= box[3] and py >= box[2] and py <= box[4]) then
@@ -135,11 +158,11 @@ function M.points(layer, E, b, box)
   return pts
 end
 
---- M.deviations(layer, E, b, box) -> sorted list of | distance - b | (mm) of
+--- M.deviations(layer, E, b, box, chords) -> sorted list of | distance - b | (mm) of
 -- the points of M.points.
-function M.deviations(layer, E, b, box)
+function M.deviations(layer, E, b, box, chords)
   local devs = {}
-  for _, q in ipairs(M.points(layer, E, b, box)) do devs[#devs + 1] = math.abs(q[3]) end
+  for _, q in ipairs(M.points(layer, E, b, box, chords)) do devs[#devs + 1] = math.abs(q[3]) end
   table.sort(devs)
   return devs
 end
