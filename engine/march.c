@@ -399,11 +399,11 @@ static int chord_newton(gr_slice_grad_fn gfn, void *ud, double tol, double chord
   size_t n = *m;
   double *mx = malloc(n * sizeof *mx), *my = malloc(n * sizeof *my), *t = calloc(n, sizeof *t);
   double *qx = malloc(n * sizeof *qx), *qy = malloc(n * sizeof *qy), *f = malloc(n * sizeof *f);
-  double *gx = malloc(n * sizeof *gx), *gy = malloc(n * sizeof *gy);
+  double *gx = malloc(n * sizeof *gx), *gy = malloc(n * sizeof *gy), *hl = malloc(n * sizeof *hl);
   size_t *act = malloc(n * sizeof *act);
   unsigned char *left = calloc(n, 1); /* 1: bracket it */
   int rc = GR_OK;
-  if (!mx || !my || !t || !qx || !qy || !f || !gx || !gy || !act || !left) {
+  if (!mx || !my || !t || !qx || !qy || !f || !gx || !gy || !hl || !act || !left) {
     rc = gr_fail(e, GR_EMEM, "out of memory refining chords");
     goto done;
   }
@@ -411,12 +411,13 @@ static int chord_newton(gr_slice_grad_fn gfn, void *ud, double tol, double chord
   for (size_t k = 0; k < n; k++) {
     mx[k] = 0.5 * (ax[k] + bx[k]);
     my[k] = 0.5 * (ay[k] + by[k]);
+    hl[k] = hypot(bx[k] - mx[k], by[k] - my[k]); /* half the bracket */
     act[k] = k;
   }
   for (int it = 0; it < 6 && na > 0; it++) {
     for (size_t i = 0; i < na; i++) {
       size_t k = act[i];
-      double h = hypot(bx[k] - mx[k], by[k] - my[k]);
+      double h = hl[k];
       qx[i] = mx[k] + t[k] * (bx[k] - mx[k]) / h;
       qy[i] = my[k] + t[k] * (by[k] - my[k]) / h;
     }
@@ -428,7 +429,7 @@ static int chord_newton(gr_slice_grad_fn gfn, void *ud, double tol, double chord
     size_t keep = 0;
     for (size_t i = 0; i < na; i++) {
       size_t k = act[i];
-      double h = hypot(bx[k] - mx[k], by[k] - my[k]);
+      double h = hl[k];
       double dn = (gx[i] * (bx[k] - mx[k]) + gy[i] * (by[k] - my[k])) / h;
       double step = dn > 0.5 ? -f[i] / dn : NAN;
       if (!isfinite(step) || fabs(t[k] + step) > h) { left[k] = 1; continue; }
@@ -456,7 +457,7 @@ static int chord_newton(gr_slice_grad_fn gfn, void *ud, double tol, double chord
   }
   *m = q;
 done:
-  free(mx); free(my); free(t); free(qx); free(qy); free(f); free(gx); free(gy); free(act); free(left);
+  free(mx); free(my); free(t); free(qx); free(qy); free(f); free(gx); free(gy); free(hl); free(act); free(left);
   return rc;
 }
 
@@ -748,8 +749,14 @@ static int chord_passes(gr_rings *r, unsigned char **okp, const unsigned char *m
         if (!rc) rc = gr_rings_close(nr);
       }
       if (rc) rc = gr_fail(e, GR_EMEM, "out of memory refining chords");
-      else rc = gr_rings_copy(r, nr) ? gr_fail(e, GR_EMEM, "out of memory refining chords") : GR_OK;
-      if (!rc) { free(ok); ok = ok2; ok2 = NULL; }
+      if (!rc) { /* the new rings become r's; r's arrays are the next pass's to fill */
+        gr_rings t = *r;
+        *r = *nr;
+        *nr = t;
+        free(ok);
+        ok = ok2;
+        ok2 = NULL;
+      }
     }
   pass_done:
     free(ax); free(ay); free(bx); free(by); free(fa); free(fb); free(A); free(B);

@@ -26,14 +26,6 @@ void gr_rings_clear(gr_rings *r) {
   r->start[0] = 0;
 }
 
-int gr_rings_point(gr_rings *r, double x, double y) {
-  if (gr_grow(&r->xy, &r->cappts, r->npts + 1, 2 * sizeof(double))) return GR_EMEM;
-  r->xy[2 * r->npts] = x;
-  r->xy[2 * r->npts + 1] = y;
-  r->npts++;
-  return GR_OK;
-}
-
 int gr_rings_close(gr_rings *r) {
   if (r->npts == r->start[r->nrings]) return GR_OK; /* empty ring: ignore */
   if (gr_grow(&r->start, &r->caprings, r->nrings + 2, sizeof *r->start)) return GR_EMEM;

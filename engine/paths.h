@@ -23,8 +23,15 @@ void gr_rings_free(gr_rings *r); /* NULL is fine */
 void gr_rings_clear(gr_rings *r);
 /* Append one ring of n points (copied). */
 int gr_rings_add(gr_rings *r, const double *xy, size_t n);
-/* Build a ring point by point: gr_rings_point ... gr_rings_close. */
-int gr_rings_point(gr_rings *r, double x, double y);
+/* Build a ring point by point: gr_rings_point ... gr_rings_close (inline:
+ * the chord passes rebuild their rings a point at a time). */
+static inline int gr_rings_point(gr_rings *r, double x, double y) {
+  if (r->npts >= r->cappts && gr_grow(&r->xy, &r->cappts, r->npts + 1, 2 * sizeof(double))) return GR_EMEM;
+  r->xy[2 * r->npts] = x;
+  r->xy[2 * r->npts + 1] = y;
+  r->npts++;
+  return GR_OK;
+}
 int gr_rings_close(gr_rings *r); /* ends the ring begun by the points since the last close */
 static inline size_t gr_ring_len(const gr_rings *r, size_t i) { return r->start[i + 1] - r->start[i]; }
 static inline const double *gr_ring_xy(const gr_rings *r, size_t i) { return r->xy + 2 * r->start[i]; }

@@ -85,8 +85,30 @@ static inline int pd_visit(const poly_dist *d, pd_seen *seen, unsigned id, size_
   return 0;
 }
 
+/* How far v lies outside [lo, lo + bs] (0 inside). */
+static inline double pd_gap(double v, double lo, double bs) {
+  return v < lo ? lo - v : v > lo + bs ? v - lo - bs : 0;
+}
+
+/* Whether column i's bucket may hold an edge within sqrt(r2) of x along x
+ * (r2 < 0: none). */
+static inline int pd_near(const poly_dist *d, double x, int i, double r2) {
+  double g = pd_gap(x, d->lo[0] + i * d->bs, d->bs);
+  return g * g <= r2;
+}
+
+/* Narrow the columns [*a, *b] of a row to those pd_near keeps (the first and
+ * last kept: the gap grows away from x's column). */
+static inline void pd_row_span(const poly_dist *d, double x, double r2, int *a, int *b) {
+  if (!(r2 < INFINITY)) return;
+  while (*a <= *b && !pd_near(d, x, *a, r2)) (*a)++;
+  while (*b >= *a && !pd_near(d, x, *b, r2)) (*b)--;
+}
+
 /* Nearest edge to (x, y) among edges within rmax (searching rings of buckets
- * outward: ring k's rows top to bottom, each left to right). Returns the
+ * outward: ring k's rows top to bottom, each left to right; a bucket farther
+ * from the point than the best edge so far is passed over, as no edge in it
+ * can be nearer). Returns the
  * squared distance (INFINITY if none within rmax) and the edge and
  * parameter; ties go to the edge met first. PD_ANY returns at the first edge
  * whose distance is <= rmax (a yes/no query: not the nearest). PD_GROW
@@ -106,18 +128,25 @@ static double pd_search(const poly_dist *d, pd_seen *seen, double x, double y, d
     memset(seen->mark, 0, d->ne * sizeof *seen->mark);
     id = seen->id = 1;
   }
+
   for (int k = 0; k <= kmax; k++) {
     int ia = ci - k < 0 ? 0 : ci - k, ib = ci + k >= d->bx ? d->bx - 1 : ci + k;
     int ja = cj - k < 0 ? 0 : cj - k, jb = cj + k >= d->by ? d->by - 1 : cj + k;
     for (int j = ja; j <= jb; j++) {
       size_t row = (size_t)d->bx * j;
       int hit = 0;
-      if (j == cj - k || j == cj + k) { /* the ring's first or last row: all of it */
-        if (ia <= ib) hit = pd_visit(d, seen, id, row + ia, row + ib + 1, x, y, rmax, mode, &best, edge, tpar);
+      /* buckets farther from the point than the best so far hold no nearer
+       * edge (an edge lies in every bucket its box meets): skipped */
+      double gy = pd_gap(y, d->lo[1] + j * d->bs, d->bs);
+      if (!(gy * gy <= best)) continue;
+      if (j == cj - k || j == cj + k) { /* the ring's first or last row: all of it within reach */
+        int a = ia, b = ib;
+        pd_row_span(d, x, best - gy * gy, &a, &b);
+        if (a <= b) hit = pd_visit(d, seen, id, row + a, row + b + 1, x, y, rmax, mode, &best, edge, tpar);
       } else { /* a row between: its two ends */
-        if (ci - k >= 0 && ci - k < d->bx)
+        if (ci - k >= 0 && ci - k < d->bx && pd_near(d, x, ci - k, best - gy * gy))
           hit = pd_visit(d, seen, id, row + ci - k, row + ci - k + 1, x, y, rmax, mode, &best, edge, tpar);
-        if (!hit && ci + k >= 0 && ci + k < d->bx)
+        if (!hit && ci + k >= 0 && ci + k < d->bx && pd_near(d, x, ci + k, best - gy * gy))
           hit = pd_visit(d, seen, id, row + ci + k, row + ci + k + 1, x, y, rmax, mode, &best, edge, tpar);
       }
       if (hit) return best;
