@@ -40,6 +40,37 @@ t.test("layer: contour at b, hatch region, tostring", function()
   t.ok(tostring(l):match("^layer z=0.04: 1 contours %(7%.%d+ mm%), %d+ hatches"), tostring(l))
 end)
 
+t.test("contour chords follow the offset's arcs around the section's corners", function()
+  -- a 2 mm square with a 0.6 mm square hole: the contour at b runs on quarter
+  -- circles of radius b around the hole's corners, and turns a right angle
+  -- at the outer square's; chords between two crossings of the grid (cell
+  -- d/4) cut both (by 6.3 um before the offsets' chords were refined)
+  local b, lo, hi = 0.025, 0.7, 1.3
+  local sec = { { 0, 0, 2, 0, 2, 2, 0, 2 }, { lo, lo, lo, hi, hi, hi, hi, lo } }
+  local l = hatch.layer(sec, { spacing = 0.05, beam_offset = b, angle = 0, z = 0.04 })
+  local function dist(x, y) -- to the section's boundary, analytic
+    local dx, dy = math.max(lo - x, 0, x - hi), math.max(lo - y, 0, y - hi)
+    return math.min(math.sqrt(dx * dx + dy * dy), x, y, 2 - x, 2 - y)
+  end
+  local worst, n, on_arc = 0, 0, 0
+  for _, bk in ipairs(l:blocks()) do
+    if bk.kind == "contour" then
+      local P = bk.points
+      for q = 1, #P - 3, 2 do
+        for s = 0, 3 do -- the vertex and three points inside the chord
+          local x, y = P[q] + s / 4 * (P[q + 2] - P[q]), P[q + 1] + s / 4 * (P[q + 3] - P[q + 1])
+          worst = math.max(worst, math.abs(dist(x, y) - b))
+          n = n + 1
+          if (x < lo or x > hi) and (y < lo or y > hi) and dist(x, y) < 0.5 then on_arc = on_arc + 1 end
+        end
+      end
+    end
+  end
+  t.ok(on_arc >= 16, "points on the hole's corner arcs: " .. on_arc)
+  -- the chord tolerance (0.2 um) and the crossings' (1 nm), rounding aside
+  t.ok(worst <= 2.1e-4, ("contour %.3f um off the offset (%d points)"):format(worst * 1e3, n))
+end)
+
 t.test("angle sequence", function()
   t.near(hatch.angle(0), 45, 1e-12, "default first") ; t.near(hatch.angle(1), 112, 1e-12, "+67")
   t.near(hatch.angle(3, 45, 67), 246, 1e-12, "k=3") ; t.near(hatch.angle(5, 0, 90), 90, 1e-12, "90")
