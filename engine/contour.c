@@ -51,13 +51,13 @@ int gr_hatch_miter_offset(const gr_rings *in, double b, double cell, const doubl
 }
 
 /* The default offset (the templates' too): polydist.c's, crossings to 1e-6
- * mm, chords refined to the engine's chord tolerance like the sections':
+ * mm, chords refined to the offsets' chord tolerance (slice.h):
  * where the section has a corner (a crease of a thick sheet, a step at a
  * face, a domain's face meeting the lattice) the offset runs on an arc of
  * radius b around it, which a chord between two crossings of the grid cut
  * by up to 3 um; elsewhere a chord's midpoint check passes at once. */
 static int offset_default(const gr_rings *in, double b, double cell, const double *box, gr_rings *out, gr_err *e) {
-  return gr_offset_rings_opt(in, b, cell, 1e-6, GR_CHORD_TOL, box, out, e);
+  return gr_offset_rings_opt(in, b, cell, 1e-6, GR_OFFSET_CHORD_TOL, box, out, e);
 }
 
 static gr_offset_fn pick_offset(const gr_hatch_opts *o) {

@@ -67,9 +67,10 @@ void gr_sha256_hex(const void *data, size_t n, char out[65]);
  * contours move by up to 0.11 um, hatch ends by up to 0.17 um, 2026-11-29),
  * 15 since that Newton finish stops at the projections' own tolerance (a
  * foot within 1e-6 L: contours move by 0.4 nm, 2026-11-29), 16 since
- * every in-plane offset refines its chords to the chord tolerance (contours
- * had cut the offset's arcs around the section's corners by up to 3 um
- * between their exact vertices, 2026-11-29).
+ * every in-plane offset refines its chords to 0.5 um (contours had cut the
+ * offset's arcs around the section's corners by up to 3.3 um between their
+ * exact vertices; trimmed voxels' and face steps' offsets were refined to
+ * 0.2 um, 2026-11-29).
  * A template whose
  * signature begins otherwise was built under an older rule: its key is never
  * asked for again, `gradus kb list` marks it stale and prune removes it. */

@@ -127,9 +127,9 @@ int gr_skinring_contours(gr_skinring *s, int slot, gr_layer *cont, gr_err *e) {
   size_t cap = 0, caprun = 0;
   int rc = (loc && off) ? GR_OK : gr_fail(e, GR_EMEM, "out of memory");
   for (int i = s->n; i < s->k && rc == GR_OK; i++) {
-    /* chords refined to 0.2 um: corners stay corners (the template's own rule) */
+    /* chords refined (the offsets' tolerance): corners stay corners, as in the templates */
     double b = s->j->o.beam_offset + i * s->j->o.hatch;
-    rc = gr_offset_rings_opt(s->tl->section, b, s->j->o.slice_cell, 1e-6, GR_CHORD_TOL, NULL, off, e);
+    rc = gr_offset_rings_opt(s->tl->section, b, s->j->o.slice_cell, 1e-6, GR_OFFSET_CHORD_TOL, NULL, off, e);
     for (size_t r = 0; rc == GR_OK && r < off->nrings; r++) rc = keep_runs(s, off, r, b, loc, &buf, &cap, &run, &caprun, e);
   }
   size_t b0 = cont->nb;
