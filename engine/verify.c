@@ -67,6 +67,9 @@ static void melt_capsule(unsigned char *img, int nx, int ny, const double lo[2],
   }
 }
 
+/* Points measured inside every contour segment, besides its vertices. */
+#define DEV_INSIDE 3
+
 static double dist_boundary(const gr_rings *s, double x, double y) {
   double best = INFINITY;
   for (size_t i = 0; i < s->nrings; i++) {
@@ -245,17 +248,22 @@ int gr_verify_layer(const gr_rings *section, const gr_layer *l, const gr_verify_
       }
       r->thin_scans += (size_t)in;
     } else if (B->kind == GR_CONTOUR && B->shape != GR_SEGMENTS) {
-      size_t m = B->n - (B->shape == GR_CLOSED && B->n > 1 ? 1 : 0);
-      for (size_t k = 0; k < m; k++) {
-        if (o->clip && (p[2 * k] < o->clip_lo[0] + 2 * tr || p[2 * k] > o->clip_hi[0] - 2 * tr ||
-                        p[2 * k + 1] < o->clip_lo[1] + 2 * tr || p[2 * k + 1] > o->clip_hi[1] - 2 * tr))
-          continue;
-        double dist = dist_boundary(section, p[2 * k], p[2 * k + 1]), dev = INFINITY;
-        for (int c = 0; c < o->contours; c++) dev = fmin(dev, fabs(dist - (b + c * sp)));
-        dsum += dev;
-        r->max_dev = fmax(r->max_dev, dev);
-        r->contour_points++;
-      }
+      /* the vertices and DEV_INSIDE points inside every segment: the laser
+       * follows the chord, which can leave a curve both its ends lie on */
+      for (size_t k = 0; k < B->n; k++)
+        for (int s = 0; s <= DEV_INSIDE && (s == 0 || k + 1 < B->n); s++) {
+          if (s == 0 && B->shape == GR_CLOSED && B->n > 1 && k + 1 == B->n) continue; /* the first point again */
+          double f = (double)s / (DEV_INSIDE + 1), x = p[2 * k], y = p[2 * k + 1];
+          if (s) { x += f * (p[2 * k + 2] - x); y += f * (p[2 * k + 3] - y); }
+          if (o->clip && (x < o->clip_lo[0] + 2 * tr || x > o->clip_hi[0] - 2 * tr ||
+                          y < o->clip_lo[1] + 2 * tr || y > o->clip_hi[1] - 2 * tr))
+            continue;
+          double dist = dist_boundary(section, x, y), dev = INFINITY;
+          for (int c = 0; c < o->contours; c++) dev = fmin(dev, fabs(dist - (b + c * sp)));
+          dsum += dev;
+          r->max_dev = fmax(r->max_dev, dev);
+          r->contour_points++;
+        }
     }
   }
   size_t solid = 0, melt = 0, pore = 0, over = 0;

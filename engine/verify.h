@@ -31,7 +31,8 @@ typedef struct gr_verify_result {
   double melt_area;   /* melted pixels * pixel^2, mm^2 */
   double max_dev;     /* max over contour points of |dist to boundary - b_i|, mm */
   double mean_dev;    /* mean of the same, mm (0 when there are no contours) */
-  size_t contour_points; /* contour points measured (thin-wall scans excluded) */
+  size_t contour_points; /* contour points measured: vertices and 3 points inside every
+                            segment (thin-wall scans excluded) */
   size_t thin_points; /* points of thin-wall centre lines (dir GR_DIR_THIN), not in
                          the deviation: they follow a wall's middle, not b */
   size_t thin_scans;  /* thin-wall centre lines with a point counted */
