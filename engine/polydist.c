@@ -128,7 +128,6 @@ static double pd_search(const poly_dist *d, pd_seen *seen, double x, double y, d
     memset(seen->mark, 0, d->ne * sizeof *seen->mark);
     id = seen->id = 1;
   }
-
   for (int k = 0; k <= kmax; k++) {
     int ia = ci - k < 0 ? 0 : ci - k, ib = ci + k >= d->bx ? d->bx - 1 : ci + k;
     int ja = cj - k < 0 ? 0 : cj - k, jb = cj + k >= d->by ? d->by - 1 : cj + k;
