@@ -276,6 +276,93 @@ static int emit_chains(gr_asm_scratch *s, size_t b0, size_t n, double track, gr_
   return rc ? gr_fail(e, GR_EMEM, "out of memory") : GR_OK;
 }
 
+/* ---- thin-wall lines across voxel faces ----
+ * A thin-wall line has no orientation: the trace of each voxel's template
+ * starts at its deepest node, so the pieces two voxels leave at their
+ * common face may both end there, or both start there. Joining end to start
+ * (as the contours' pieces, whose orientation is the boundary's) would then
+ * either leave them apart or, worse, take the far end of a short piece that
+ * happens to lie within the tolerance and fold the line back on itself.
+ * So thin pieces are joined end to end, either end to either end, nearest
+ * pairs first; a piece entered at its end is reversed in place. */
+
+typedef struct thin_pair { double d2; long a, b; } thin_pair; /* ends: 2 piece + (0 start, 1 end) */
+
+static int thin_pair_cmp(const void *x, const void *y) {
+  const thin_pair *p = x, *q = y;
+  if (p->d2 != q->d2) return p->d2 < q->d2 ? -1 : 1;
+  return p->a != q->a ? (p->a < q->a ? -1 : 1) : (p->b > q->b) - (p->b < q->b);
+}
+
+static const double *thin_end(const gr_layer *c, size_t b0, long end) {
+  const gr_block *bk = &c->b[b0 + (size_t)(end / 2)];
+  return c->xy + 2 * (bk->start + (end & 1 ? bk->n - 1 : 0));
+}
+
+static int is_thin(const gr_block *bk) { return bk->shape == GR_OPEN && bk->dir == GR_DIR_THIN && bk->n >= 2; }
+
+static void thin_reverse(gr_layer *c, size_t b0, long piece) {
+  const gr_block *bk = &c->b[b0 + (size_t)piece];
+  double *p = c->xy + 2 * bk->start;
+  for (size_t i = 0, k = bk->n - 1; i < k; i++, k--)
+    for (int a = 0; a < 2; a++) { double t = p[2 * i + a]; p[2 * i + a] = p[2 * k + a]; p[2 * k + a] = t; }
+}
+
+/* Link the thin open pieces among blocks [b0, b0 + n) (next/prev as
+ * join_contours keeps them), their ends paired within tol. */
+static int join_thin(gr_layer *c, size_t b0, size_t n, double tol, long *next, long *prev) {
+  long *part = malloc(2 * n * sizeof *part), *fwd = malloc(n * sizeof *fwd);
+  double *ex = malloc(2 * n * 3 * sizeof *ex); /* x, y, end of the thin pieces' ends, sorted by x */
+  size_t np = 0, cap = 0, ne = 0;
+  thin_pair *pr = NULL;
+  int rc = part && fwd && ex ? GR_OK : GR_EMEM;
+  for (size_t i = 0; i < n && !rc; i++) {
+    part[2 * i] = part[2 * i + 1] = -1;
+    fwd[i] = -1; /* not a thin piece, or not yet walked */
+    if (!is_thin(&c->b[b0 + i])) continue;
+    for (int a = 0; a < 2; a++) {
+      const double *p = thin_end(c, b0, 2 * (long)i + a);
+      ex[3 * ne] = p[0]; ex[3 * ne + 1] = p[1]; ex[3 * ne + 2] = (double)(2 * (long)i + a);
+      ne++;
+    }
+  }
+  if (!rc && ne) qsort(ex, ne, 3 * sizeof *ex, triple_cmp);
+  for (size_t u = 0; u < ne && !rc; u++)
+    for (size_t w = u + 1; w < ne && ex[3 * w] <= ex[3 * u] + tol; w++) {
+      long ea = (long)ex[3 * u + 2], eb = (long)ex[3 * w + 2];
+      double dx = ex[3 * u] - ex[3 * w], dy = ex[3 * u + 1] - ex[3 * w + 1], d2 = dx * dx + dy * dy;
+      if (ea / 2 == eb / 2 || !(d2 <= tol * tol)) continue;
+      if (gr_grow(&pr, &cap, np + 1, sizeof *pr)) { rc = GR_EMEM; break; }
+      pr[np++] = (thin_pair){d2, ea < eb ? ea : eb, ea < eb ? eb : ea};
+    }
+  if (!rc) {
+    if (np) qsort(pr, np, sizeof *pr, thin_pair_cmp);
+    for (size_t q = 0; q < np; q++)
+      if (part[pr[q].a] < 0 && part[pr[q].b] < 0) { part[pr[q].a] = pr[q].b; part[pr[q].b] = pr[q].a; }
+    /* walk from the pieces with a free end first, then around what is left (rings) */
+    for (int round = 0; round < 2; round++)
+      for (size_t i = 0; i < n; i++) {
+        if (fwd[i] >= 0 || !is_thin(&c->b[b0 + i])) continue;
+        if (round == 0 && part[2 * i] >= 0 && part[2 * i + 1] >= 0) continue;
+        long p = (long)i;
+        fwd[p] = part[2 * p] < 0 || round == 1; /* enter at a free start, else reversed */
+        for (;;) {
+          long tail = part[2 * p + (fwd[p] ? 1 : 0)];
+          if (tail < 0) break;
+          long q = tail / 2;
+          if (fwd[q] >= 0) { if (q == (long)i) { next[p] = q; prev[q] = p; } break; }
+          fwd[q] = (tail & 1) == 0;
+          next[p] = q; prev[q] = p;
+          p = q;
+        }
+      }
+    for (size_t i = 0; i < n; i++)
+      if (fwd[i] == 0) thin_reverse(c, b0, (long)i);
+  }
+  free(pr); free(part); free(fwd); free(ex);
+  return rc;
+}
+
 /* Join open contour pieces whose end meets another's start (within tol)
  * into chains; closed chains become GR_CLOSED loops, each on one laser where
  * one reaches it (stitch.h). Pieces come from s->cont blocks [b0, b1);
@@ -288,12 +375,13 @@ static int join_contours(gr_asm_scratch *s, size_t b0, size_t b1, double tol, do
   if (gr_grow(&s->link, &s->caplink, 3 * n, sizeof *s->link)) return gr_fail(e, GR_EMEM, "out of memory");
   long *next = s->link, *prev = s->link + n, *used = s->link + 2 * n;
   for (size_t i = 0; i < n; i++) next[i] = prev[i] = -1, used[i] = 0;
+  if (join_thin(c, b0, n, tol, next, prev)) return gr_fail(e, GR_EMEM, "out of memory");
   /* sort open pieces by start x to find matches in O(n log n) */
   size_t nopen = 0;
   long *idx = malloc((n ? n : 1) * sizeof *idx);
   if (!idx) return gr_fail(e, GR_EMEM, "out of memory");
   for (size_t i = 0; i < n; i++)
-    if (c->b[b0 + i].shape == GR_OPEN) idx[nopen++] = (long)i;
+    if (c->b[b0 + i].shape == GR_OPEN && c->b[b0 + i].dir != GR_DIR_THIN) idx[nopen++] = (long)i;
   /* insertion into a sorted array by start x (qsort with a context-free
    * comparator needs the coordinates: copy them) */
   double *sx = malloc((nopen ? nopen : 1) * 3 * sizeof *sx);
@@ -320,7 +408,6 @@ static int join_contours(gr_asm_scratch *s, size_t b0, size_t b1, double tol, do
     for (size_t r = lo; r < nopen && sx[3 * r] <= ex + tol; r++) {
       long cand = (long)sx[3 * r + 2];
       if (cand == i || prev[cand] >= 0) continue;
-      if ((c->b[b0 + cand].dir == GR_DIR_THIN) != (bk->dir == GR_DIR_THIN)) continue;
       double dx = sx[3 * r] - ex, dy = sx[3 * r + 1] - ey, d2 = dx * dx + dy * dy;
       if (d2 <= bd) { bd = d2; best = cand; }
     }

@@ -179,6 +179,44 @@ t.test("trimmed voxels: no vector outside an implicit domain", function()
   t.ok(worst <= 1e-4, ("a scan point lies %.4g mm outside the sphere"):format(worst))
 end)
 
+t.test("thin-wall lines join across voxel borders whichever way each voxel traced them", function()
+  -- a gyroid sheet 0.04 mm thick (< 2b): every wall is a thin-wall centre
+  -- line. Each voxel traces its piece from its own deepest point, so the two
+  -- pieces at a border may both end there (or both start there): they are
+  -- joined end to end, and a short piece's far end is never taken instead
+  -- (the line would fold back on itself).
+  local keep = { 2, 7, 8, 17, 31 }
+  local _, kept = job { surface = "gyroid", thickness = "0.02" }:run { kb = false, keep = keep }
+  local d, lines = 0.05, 0
+  for _, g in ipairs(keep) do
+    local ends = {}
+    for _, b in ipairs(kept[g]:blocks()) do
+      if b.kind == "contour" and b.shape == "open" then
+        t.ok(b.thin, ("layer %d: an open contour is a thin-wall line"):format(g))
+        lines = lines + 1
+        local p, n = b.points, #b.points
+        ends[#ends + 1] = { p[1], p[2], lines }
+        ends[#ends + 1] = { p[n - 1], p[n], lines }
+        for q = 3, n - 3, 2 do
+          local ux, uy, vx, vy = p[q] - p[q - 2], p[q + 1] - p[q - 1], p[q + 2] - p[q], p[q + 3] - p[q + 1]
+          local c = (ux * vx + uy * vy) / math.sqrt((ux * ux + uy * uy) * (vx * vx + vy * vy))
+          t.ok(not (c < -0.5), ("layer %d: a thin-wall line turns back at (%.4f, %.4f)"):format(g, p[q], p[q + 1]))
+        end
+      end
+    end
+    for a = 1, #ends do
+      for b = a + 1, #ends do
+        local r = math.sqrt((ends[a][1] - ends[b][1]) ^ 2 + (ends[a][2] - ends[b][2]) ^ 2)
+        if ends[a][3] ~= ends[b][3] then
+          t.ok(r > d / 4, ("layer %d: two thin-wall lines end %.2g um apart at (%.4f, %.4f), not joined")
+            :format(g, r * 1e3, ends[a][1], ends[a][2]))
+        end
+      end
+    end
+  end
+  t.ok(lines >= 10, ("thin-wall lines to check (%d)"):format(lines))
+end)
+
 t.test("continuous mode joins contours and hatches across voxel borders", function()
   local st, kept = job { cells = { 2, 1, 1 }, angle = 0, rotation = 0 }:run { kb = false, keep = { 10, 30 } }
   local crossing_contour, crossing_hatch = false, false
