@@ -83,9 +83,12 @@ t.test("shared closest points give the sections of each class's own field", func
   -- three z-rows graded differently share H's closest points (share = true,
   -- the default); share = false slices every class's offset field on its own
   local o = { cells = { 1, 1, 3 }, thickness = "0.05 + 0.02*z + 0.01*sin(3*x)" }
-  local a = job(o):run { output = tmp .. "/shared.cli", format = "binary", kb = false, first = 1, last = 150 }
+  -- binary-long: float32 coordinates. The short form's whole micrometres would round two values
+  -- a nanometre apart on either side of a half micrometre 1 um apart (seen when the offsets'
+  -- grid changed), and the comparison below would test the rounding, not the sections.
+  local a = job(o):run { output = tmp .. "/shared.cli", format = "binary-long", kb = false, first = 1, last = 150 }
   o.share = false
-  local b = job(o):run { output = tmp .. "/alone.cli", format = "binary", kb = false, first = 1, last = 150 }
+  local b = job(o):run { output = tmp .. "/alone.cli", format = "binary-long", kb = false, first = 1, last = 150 }
   t.eq(a.templates.unique, 3, "one class per z-row")
   t.eq(a.vectors.contour.count, b.vectors.contour.count, "contour vectors")
   t.eq(a.vectors.hatch.count, b.vectors.hatch.count, "hatch vectors")
