@@ -7,9 +7,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* gr_offset_rings_opt lives in polydist.c; a weak reference lets this file
+/* gr_offset_rings_coarse lives in polydist.c; a weak reference lets this file
  * link (with a simple miter offset as fallback) while polydist.c is not there. */
-#pragma weak gr_offset_rings_opt
+#pragma weak gr_offset_rings_coarse
 
 /* Fallback offset (used while polydist.c's gr_offset_rings is not linked):
  * each vertex moves to the intersection of its two edges' lines shifted by b
@@ -55,14 +55,23 @@ int gr_hatch_miter_offset(const gr_rings *in, double b, double cell, const doubl
  * where the section has a corner (a crease of a thick sheet, a step at a
  * face, a domain's face meeting the lattice) the offset runs on an arc of
  * radius b around it, which a chord between two crossings of the grid cut
- * by up to 3 um; elsewhere a chord's midpoint check passes at once. */
+ * by up to 3 um; elsewhere a chord's midpoint check passes at once.
+ * Its grid is first OFFSET_GRID slice cells: the grid decides only which
+ * cells the offset crosses (every crossing is solved on the exact polygon
+ * distance and every chord refined), so a coarser grid moves no contour
+ * beyond the chord tolerance and halves the crossings to solve and the
+ * nodes to sample. Where its edge checks (hidden.c) find a strip narrower
+ * than that grid (a wall just over 2b wide, the sharp tip of an offset),
+ * the grid is sampled again at one slice cell and refined from there as
+ * before. */
+#define OFFSET_GRID 2.0
 static int offset_default(const gr_rings *in, double b, double cell, const double *box, gr_rings *out, gr_err *e) {
-  return gr_offset_rings_opt(in, b, cell, 1e-6, GR_OFFSET_CHORD_TOL, box, out, e);
+  return gr_offset_rings_coarse(in, b, cell, OFFSET_GRID, 1e-6, GR_OFFSET_CHORD_TOL, box, out, e);
 }
 
 static gr_offset_fn pick_offset(const gr_hatch_opts *o) {
   if (o->offset) return o->offset;
-  if (gr_offset_rings_opt) return offset_default;
+  if (gr_offset_rings_coarse) return offset_default;
   return gr_hatch_miter_offset;
 }
 

@@ -233,6 +233,10 @@ static int refine_grid(const gr_ms_grid *g, int r, gr_slice_fn fn, void *ud, gr_
   return GR_OK;
 }
 
+int gr_ms_hidden(const gr_ms_grid *g, double lip, const double *box, gr_slice_fn fn, void *ud, int *hidden, gr_err *e) {
+  return hidden_boundary(g, lip, box, fn, ud, hidden, e);
+}
+
 int gr_ms_unhide(gr_ms_grid *g, double lip, const double *box, gr_slice_fn fn, void *ud, double **owned, gr_err *e) {
   *owned = NULL;
   int rc = GR_OK;

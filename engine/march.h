@@ -45,6 +45,9 @@ typedef struct gr_ms_win {
  * fewer edges are suspect), 0: none. box (x0 y0 x1 y1, or NULL: all): only
  * edges within a cell of it are probed. */
 int gr_ms_unhide(gr_ms_grid *g, double lip, const double *box, gr_slice_fn fn, void *ud, double **owned, gr_err *e);
+/* Only the probes of gr_ms_unhide's first level: *hidden = 1 where they
+ * find a part of the zero set hidden between nodes (g left as it is). */
+int gr_ms_hidden(const gr_ms_grid *g, double lip, const double *box, gr_slice_fn fn, void *ud, int *hidden, gr_err *e);
 /* Evaluate fn at n points in chunks (keeps scratch buffers of callers small). */
 int gr_ms_eval(gr_slice_fn fn, void *ud, size_t n, const double *x, const double *y, double *out, gr_err *e);
 /* Contour {fn < 0} from the sampled grid: crossings on grid edges refined on

@@ -541,10 +541,28 @@ static int bbox_grid(const gr_rings *r, double cell, gr_ms_grid *g, gr_err *e) {
   return GR_OK;
 }
 
+/* The offset's grid over src's box at step cell sampled into *v (freed and
+ * allocated again; d built on the first call). */
+static int offset_sample(const gr_rings *src, poly_dist *d, double cell, gr_ms_grid *g, double **v, gr_err *e) {
+  int rc = bbox_grid(src, cell, g, e);
+  if (rc) return rc;
+  free(*v);
+  *v = malloc((size_t)g->nx * g->ny * sizeof **v);
+  if (!*v) return gr_fail(e, GR_EMEM, "out of memory: offset grid %d x %d", g->nx, g->ny);
+  g->v = *v;
+  return pd_sample(d, g, *v, d->b + 2 * fmax(g->hx, g->hy), e);
+}
+
 int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
                         double chord_tol, const double *box, gr_rings *out, gr_err *e) {
+  return gr_offset_rings_coarse(in, b, cell, 1, tol, chord_tol, box, out, e);
+}
+
+int gr_offset_rings_coarse(const gr_rings *in, double b, double cell, double coarse, double tol,
+                           double chord_tol, const double *box, gr_rings *out, gr_err *e) {
   if (!(b >= 0) || !isfinite(b)) return gr_fail(e, GR_EARG, "offset distance b must be >= 0, got %g", b);
   if (!(cell > 0) || !isfinite(cell)) return gr_fail(e, GR_EARG, "cell must be > 0, got %g", cell);
+  if (!(coarse >= 1) || !isfinite(coarse)) return gr_fail(e, GR_EARG, "coarse must be >= 1, got %g", coarse);
   if (!(tol > 0) || !isfinite(tol)) return gr_fail(e, GR_EARG, "tol must be > 0, got %g", tol);
   if (!(chord_tol >= 0) || !isfinite(chord_tol)) return gr_fail(e, GR_EARG, "chord_tol must be >= 0, got %g", chord_tol);
   gr_rings *src = gr_rings_new();
@@ -560,23 +578,20 @@ int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
   poly_dist d;
   gr_ms_grid g;
   double *v = NULL;
-  rc = bbox_grid(src, cell, &g, e);
+  rc = bbox_grid(src, coarse * cell, &g, e);
   if (rc) { gr_rings_free(src); return rc; }
-  double rmax = b + 2 * fmax(g.hx, g.hy);
   rc = pd_build(&d, src, fmax(g.hx, g.hy), e);
   d.b = b;
   pd_seen seen;
   if (!rc) d.seen = pd_seen_new(&d, &seen);
-  if (!rc) {
-    v = malloc((size_t)g.nx * g.ny * sizeof *v);
-    if (!v) rc = gr_fail(e, GR_EMEM, "out of memory: offset grid %d x %d", g.nx, g.ny);
-  }
-  if (!rc) rc = pd_sample(&d, &g, v, rmax, e);
+  if (!rc) rc = offset_sample(src, &d, coarse * cell, &g, &v, e);
+  /* a strip hidden between the coarse grid's nodes: sampled again at cell
+   * (a sweep of the edges, cheaper than refining node by node) */
+  int hidden = 1; /* (unhide's first probes are gr_ms_hidden's: not made twice) */
+  if (!rc && coarse > 1) rc = gr_ms_hidden(&g, 1, box, pd_fn, &d, &hidden, e);
+  if (!rc && hidden && coarse > 1) rc = offset_sample(src, &d, cell, &g, &v, e);
   double *fine = NULL; /* the grid sampled again where a strip hides between nodes */
-  if (!rc) {
-    g.v = v;
-    rc = gr_ms_unhide(&g, 1, box, pd_fn, &d, &fine, e);
-  }
+  if (!rc && hidden) rc = gr_ms_unhide(&g, 1, box, pd_fn, &d, &fine, e);
   if (!rc) {
     gr_rings_clear(out);
     d.grid = &g; /* its signs now decide most refined points' sides */

@@ -88,6 +88,11 @@ int gr_offset_rings(const gr_rings *in, double b, double cell, gr_rings *out,
  * there (a template's window beyond its voxel needs no such care). */
 int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
                         double chord_tol, const double *box, gr_rings *out, gr_err *e);
+/* The same, sampled first on a grid of coarse (>= 1) cells: where its
+ * probes find a strip hidden between nodes, the grid is sampled again at
+ * cell and refined from there as gr_offset_rings_opt's is. */
+int gr_offset_rings_coarse(const gr_rings *in, double b, double cell, double coarse, double tol,
+                           double chord_tol, const double *box, gr_rings *out, gr_err *e);
 
 /* Largest in-plane distance from a point of the region to its boundary
  * (the inradius of the widest component), sampled on a grid of `cell` mm,

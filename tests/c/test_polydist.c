@@ -233,11 +233,75 @@ TEST(grid_matches_point_queries) {
   gr_rings_free(r);
 }
 
+/* gr_offset_rings_coarse (the templates' offsets: sampled first on a grid of
+ * two cells, again at one where a strip hides): a dumbbell, two squares
+ * joined by a wall 2b + 20 um wide, turned by 17 degrees. The offset by b
+ * keeps a strip 20 um wide along the wall's middle, narrower than either
+ * grid: lost, the offset falls apart into two rings (three without the
+ * edge checks and the resampling, and chords 13 um off). Every vertex must lie
+ * at b from the polygon (its exact distance, edge by edge) and every chord's
+ * middle within the chord tolerance, on the coarse grid as on the fine, and
+ * both must enclose the same area. */
+static const double DUMB[] = {0, 0, 0.4, 0, 0.4, 0.14, 0.6, 0.14, 0.6, 0, 1, 0,
+                              1, 0.4, 0.6, 0.4, 0.6, 0.26, 0.4, 0.26, 0.4, 0.4, 0, 0.4};
+#define NDUMB 12
+static void dumb_pt(int k, double *x, double *y) {
+  double c = cos(17 * M_PI / 180), s = sin(17 * M_PI / 180), u = DUMB[2 * k], v = DUMB[2 * k + 1];
+  *x = 0.3 + c * u - s * v;
+  *y = 0.1 + s * u + c * v;
+}
+static double dumb_dist(double x, double y) {
+  double d = INFINITY;
+  for (int k = 0; k < NDUMB; k++) {
+    double ax, ay, bx, by;
+    dumb_pt(k, &ax, &ay);
+    dumb_pt((k + 1) % NDUMB, &bx, &by);
+    d = fmin(d, seg_dist(x, y, ax, ay, bx, by));
+  }
+  return d;
+}
+TEST(coarse_grid_keeps_narrow_strips) {
+  gr_rings *r = gr_rings_new(), *o[2] = {gr_rings_new(), gr_rings_new()};
+  for (int k = 0; k < NDUMB; k++) {
+    double x, y;
+    dumb_pt(k, &x, &y);
+    gr_rings_point(r, x, y);
+  }
+  gr_rings_close(r);
+  gr_err e;
+  gr_err_clear(&e);
+  const double b = 0.05, cell = 0.025, ctol = 5e-4;
+  double area[2] = {0, 0};
+  for (int c = 0; c < 2; c++) {
+    int rc = gr_offset_rings_coarse(r, b, cell, c ? 2 : 1, 1e-6, ctol, NULL, o[c], &e);
+    CHECK(rc == 0, "%s", e.msg);
+    CHECK(o[c]->nrings == 1, "coarse %d: %zu rings (the strip along the wall lost)", c + 1, o[c]->nrings);
+    double worst = 0, wmid = 0;
+    for (size_t q = 0; q < o[c]->nrings; q++) {
+      const double *p = gr_ring_xy(o[c], q);
+      size_t n = gr_ring_len(o[c], q);
+      area[c] += gr_ring_area(o[c], q);
+      for (size_t k = 0; k < n; k++) {
+        const double *a = p + 2 * k, *z = p + 2 * ((k + 1) % n);
+        worst = fmax(worst, fabs(dumb_dist(a[0], a[1]) - b));
+        wmid = fmax(wmid, fabs(dumb_dist(0.5 * (a[0] + z[0]), 0.5 * (a[1] + z[1])) - b));
+      }
+    }
+    CHECK(o[c]->npts > 0 && worst < 1e-6, "coarse %d: a vertex %.3g um off the offset", c + 1, worst * 1e3);
+    CHECK(o[c]->npts > 0 && wmid < ctol, "coarse %d: a chord's middle %.3g um off the offset", c + 1, wmid * 1e3);
+  }
+  CHECK(fabs(area[0] - area[1]) < 1e-5, "areas %.7f and %.7f mm^2", area[0], area[1]);
+  gr_rings_free(o[0]);
+  gr_rings_free(o[1]);
+  gr_rings_free(r);
+}
+
 int main(void) {
   RUN(within_matches_the_distance);
   RUN(within_analytic);
   RUN(repeated_corner_points);
   RUN(crossing_rings_even_odd);
   RUN(grid_matches_point_queries);
+  RUN(coarse_grid_keeps_narrow_strips);
   DONE();
 }

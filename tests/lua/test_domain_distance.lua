@@ -134,10 +134,14 @@ t.test("skin of a cylinder domain written squared (made a distance) or as a dist
   local h1 = check_ring("squared", l1, 1e-3)
   local l2 = ring(DIST)
   local h2 = check_ring("distance", l2, 1e-3)
-  t.near(h1, h2, 1e-6 * h2, "hatch length of both forms")
+  -- the hatch regions of both lie within the offsets' chord tolerance (0.5 um) of the same offset,
+  -- and a vector's end moves with them (more where its line grazes the boundary); the offsets'
+  -- grids may differ where the edge checks decide otherwise on values a few ulps apart. A band of
+  -- another depth (1 % off, say) changes the hatch length by about as much.
+  t.near(h1, h2, 1e-3 * h2, "hatch length of both forms")
   local l3 = ring(SQUARED) -- the lattice recipe does the same by default (domain_distance=true)
   local h3 = check_ring("squared, by default", l3, 1e-3)
-  t.near(h3, h1, 1e-6 * h1, "hatch length of the squared form by default")
+  t.near(h3, h1, 1e-3 * h1, "hatch length of the squared form by default")
   -- domain_distance=false: the expression's own values, 8 times the distance near r = 4, so the
   -- band is about 0.3/8 mm deep: narrower than two beam offsets, hardly anything to hatch
   local _, h4 = measure(ring(SQUARED, false))
