@@ -469,9 +469,7 @@ static int on_border(const gr_ms_win *w, const double *a, const double *b) {
   return 0;
 }
 
-/* Where the line through p0, a meets the line through b, p1 (NaN when they
- * are near parallel): the corner a chord a-b may have cut off. */
-static void chord_corner(const double *p0, const double *a, const double *b, const double *p1, double c[2]) {
+void gr_ms_chord_corner(const double *p0, const double *a, const double *b, const double *p1, double c[2]) {
   double ux = a[0] - p0[0], uy = a[1] - p0[1], vx = p1[0] - b[0], vy = p1[1] - b[1];
   double den = ux * vy - uy * vx, lu = hypot(ux, uy), lv = hypot(vx, vy);
   double t = (b[0] - a[0]) * vy - (b[1] - a[1]) * vx;
@@ -485,7 +483,7 @@ static void chord_corner(const double *p0, const double *a, const double *b, con
 static void chord_corner_of(const gr_rings *r, size_t i, size_t g, double c[2]) {
   size_t len = gr_ring_len(r, i), k = g - r->start[i];
   const double *p = gr_ring_xy(r, i);
-  chord_corner(p + 2 * ((k + len - 1) % len), p + 2 * k, p + 2 * ((k + 1) % len), p + 2 * ((k + 2) % len), c);
+  gr_ms_chord_corner(p + 2 * ((k + len - 1) % len), p + 2 * k, p + 2 * ((k + 1) % len), p + 2 * ((k + 2) % len), c);
 }
 
 /* Chords whose bracket (+-half the chord along the normal) has one sign at

@@ -37,6 +37,9 @@ typedef struct gr_ms_win {
   gr_slice_smooth_fn smooth; /* or NULL: gr_slice_opts.smooth, with fn's ud */
 } gr_ms_win;
 
+/* Where the line through p0, a meets the line through b, p1 (NaN when they
+ * are near parallel): the corner a chord a-b may have cut off. */
+void gr_ms_chord_corner(const double *p0, const double *a, const double *b, const double *p1, double c[2]);
 /* Parts of the zero set hidden between nodes of one sign (hidden.c): where
  * probes of suspect edges find the other sign by more than 1 um, g is
  * sampled again 2x finer near the zero set (up to twice); *g then describes

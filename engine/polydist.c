@@ -553,6 +553,92 @@ static int offset_sample(const gr_rings *src, poly_dist *d, double cell, gr_ms_g
   return pd_sample(d, g, *v, d->b + 2 * fmax(g->hx, g->hy), e);
 }
 
+/* Sharp corners of the offset cut by a chord. The chord pass accepts a
+ * chord whose middle's root lies within chord_tol of it; where the chord
+ * cuts a corner (the offset lines of two edges meeting, at a convex vertex
+ * of the section) off-centre, the corner itself can lie up to twice as far.
+ * There the chords on either side run along the two offset lines, so the
+ * corner is near where their lines meet (gr_ms_chord_corner); where that
+ * lies ahead of both, within a chord's length and more than CORNER_MIN off
+ * the chord, and the lines turn by CORNER_COS or more, the corner is solved
+ * exactly: the offset lines of the chord
+ * ends' nearest edges (n.x = n.q + b, n the unit vector from an end's
+ * nearest boundary point q to it) meet there. It is put in when the
+ * distance there is b within CORNER_ON (along an arc, around a vertex of
+ * the section, the two tangents meet off the curve: nothing is put in). */
+#define CORNER_MIN 5e-5
+#define CORNER_ON 1e-6
+#define CORNER_COS 0.866 /* corners that turn by 30 degrees or more: the section's
+                            polygon turns a little at every vertex, and its offset with it */
+
+/* The corner of chord a-b from its ends' nearest boundary points (0: the
+ * offset lines are near parallel). */
+static int corner_exact(poly_dist *d, const double *a, const double *b, double c[2]) {
+  double qa[2], qb[2];
+  pd_signed(d, d->seen, a[0], a[1], qa);
+  pd_signed(d, d->seen, b[0], b[1], qb);
+  double nax = a[0] - qa[0], nay = a[1] - qa[1], nbx = b[0] - qb[0], nby = b[1] - qb[1];
+  double la = hypot(nax, nay), lb = hypot(nbx, nby);
+  if (!(la > 0 && lb > 0)) return 0;
+  nax /= la; nay /= la; nbx /= lb; nby /= lb;
+  double ra = nax * qa[0] + nay * qa[1] + d->b, rb = nbx * qb[0] + nby * qb[1] + d->b;
+  double det = nax * nby - nay * nbx;
+  if (!(fabs(det) > 1e-6)) return 0;
+  c[0] = (ra * nby - rb * nay) / det;
+  c[1] = (nax * rb - nbx * ra) / det;
+  return 1;
+}
+static int offset_corners(gr_rings *r, poly_dist *d, gr_err *e) {
+  size_t n = r->npts, m = 0;
+  double *cx = malloc((n + 1) * sizeof *cx), *cy = malloc((n + 1) * sizeof *cy), *f = malloc((n + 1) * sizeof *f);
+  size_t *at = malloc((n + 1) * sizeof *at);
+  gr_rings *o = gr_rings_new();
+  int rc = cx && cy && f && at && o ? GR_OK : gr_fail(e, GR_EMEM, "out of memory: offset corners");
+  for (size_t i = 0; i < r->nrings && !rc; i++) {
+    size_t len = gr_ring_len(r, i);
+    const double *p = gr_ring_xy(r, i);
+    for (size_t k = 0; k < len && len >= 4; k++) {
+      const double *a = p + 2 * k, *b = p + 2 * ((k + 1) % len);
+      const double *a0 = p + 2 * ((k + len - 1) % len), *b1 = p + 2 * ((k + 2) % len);
+      double c[2], ux = b[0] - a[0], uy = b[1] - a[1], L = hypot(ux, uy);
+      gr_ms_chord_corner(a0, a, b, b1, c);
+      if (!(L > 0) || !isfinite(c[0])) continue;
+      double h = ((c[0] - a[0]) * uy - (c[1] - a[1]) * ux) / L; /* > 0: right of a-b, outside */
+      double sa = (c[0] - a[0]) * (a[0] - a0[0]) + (c[1] - a[1]) * (a[1] - a0[1]);
+      double sb = (b1[0] - b[0]) * (b[0] - c[0]) + (b1[1] - b[1]) * (b[1] - c[1]);
+      double tx = a[0] - a0[0], ty = a[1] - a0[1], vx = b1[0] - b[0], vy = b1[1] - b[1];
+      double turn = (tx * vx + ty * vy) / (hypot(tx, ty) * hypot(vx, vy)); /* cos of the corner's turn */
+      if (!(h > CORNER_MIN && h < L && sa > 0 && sb > 0 && turn < CORNER_COS) || !corner_exact(d, a, b, c)) continue;
+      cx[m] = c[0]; cy[m] = c[1]; at[m++] = r->start[i] + k;
+    }
+  }
+  if (!rc && m == 0) goto done;
+  if (!rc) rc = pd_fn(d, m, cx, cy, f, e);
+  size_t q = 0, put = 0;
+  for (size_t i = 0; i < r->nrings && !rc; i++) {
+    size_t len = gr_ring_len(r, i);
+    const double *p = gr_ring_xy(r, i);
+    for (size_t k = 0; k < len && !rc; k++) {
+      rc = gr_rings_point(o, p[2 * k], p[2 * k + 1]) ? gr_fail(e, GR_EMEM, "out of memory: offset corners") : GR_OK;
+      for (; q < m && at[q] < r->start[i] + k; q++) {}
+      if (!rc && q < m && at[q] == r->start[i] + k && fabs(f[q]) <= CORNER_ON) {
+        rc = gr_rings_point(o, cx[q], cy[q]) ? gr_fail(e, GR_EMEM, "out of memory: offset corners") : GR_OK;
+        put++;
+      }
+    }
+    if (!rc && gr_rings_close(o)) rc = gr_fail(e, GR_EMEM, "out of memory: offset corners");
+  }
+  if (!rc && put) {
+    gr_rings t = *r;
+    *r = *o;
+    *o = t;
+  }
+done:
+  free(cx); free(cy); free(f); free(at);
+  gr_rings_free(o);
+  return rc;
+}
+
 int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
                         double chord_tol, const double *box, gr_rings *out, gr_err *e) {
   return gr_offset_rings_coarse(in, b, cell, 1, tol, chord_tol, box, out, e);
@@ -600,6 +686,7 @@ int gr_offset_rings_coarse(const gr_rings *in, double b, double cell, double coa
   if (!rc && chord_tol > 0) {
     gr_ms_win w = {0, {0, 0}, {0, 0}, 4 * fmax(g.hx, g.hy), 0, NULL};
     rc = gr_ms_chord_refine(out, pd_fn, pd_gfn, &d, tol, chord_tol, &w, e);
+    if (!rc) rc = offset_corners(out, &d, e);
   }
   if (!rc) rc = gr_rings_nest(out, e);
   free(fine);
