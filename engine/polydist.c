@@ -588,6 +588,7 @@ static int corner_exact(poly_dist *d, const double *a, const double *b, double c
   c[1] = (nax * rb - nbx * ra) / det;
   return 1;
 }
+
 static int offset_corners(gr_rings *r, poly_dist *d, gr_err *e) {
   size_t n = r->npts, m = 0;
   double *cx = malloc((n + 1) * sizeof *cx), *cy = malloc((n + 1) * sizeof *cy), *f = malloc((n + 1) * sizeof *f);
@@ -600,21 +601,26 @@ static int offset_corners(gr_rings *r, poly_dist *d, gr_err *e) {
     for (size_t k = 0; k < len && len >= 4; k++) {
       const double *a = p + 2 * k, *b = p + 2 * ((k + 1) % len);
       const double *a0 = p + 2 * ((k + len - 1) % len), *b1 = p + 2 * ((k + 2) % len);
+      /* most vertices: the neighbouring chords turn by less (no corner) */
+      double tx = a[0] - a0[0], ty = a[1] - a0[1], vx = b1[0] - b[0], vy = b1[1] - b[1];
+      double turn = (tx * vx + ty * vy) / (hypot(tx, ty) * hypot(vx, vy)); /* cos of the corner's turn */
+      if (!(turn < CORNER_COS)) continue;
       double c[2], ux = b[0] - a[0], uy = b[1] - a[1], L = hypot(ux, uy);
       gr_ms_chord_corner(a0, a, b, b1, c);
       if (!(L > 0) || !isfinite(c[0])) continue;
       double h = ((c[0] - a[0]) * uy - (c[1] - a[1]) * ux) / L; /* > 0: right of a-b, outside */
-      double sa = (c[0] - a[0]) * (a[0] - a0[0]) + (c[1] - a[1]) * (a[1] - a0[1]);
-      double sb = (b1[0] - b[0]) * (b[0] - c[0]) + (b1[1] - b[1]) * (b[1] - c[1]);
-      double tx = a[0] - a0[0], ty = a[1] - a0[1], vx = b1[0] - b[0], vy = b1[1] - b[1];
-      double turn = (tx * vx + ty * vy) / (hypot(tx, ty) * hypot(vx, vy)); /* cos of the corner's turn */
-      if (!(h > CORNER_MIN && h < L && sa > 0 && sb > 0 && turn < CORNER_COS) || !corner_exact(d, a, b, c)) continue;
+      double sa = (c[0] - a[0]) * tx + (c[1] - a[1]) * ty;
+      double sb = vx * (b[0] - c[0]) + vy * (b[1] - c[1]);
+      if (!(h > CORNER_MIN && h < L && sa > 0 && sb > 0) || !corner_exact(d, a, b, c)) continue;
       cx[m] = c[0]; cy[m] = c[1]; at[m++] = r->start[i] + k;
     }
   }
   if (!rc && m == 0) goto done;
   if (!rc) rc = pd_fn(d, m, cx, cy, f, e);
   size_t q = 0, put = 0;
+  for (size_t k = 0; k < m && !rc; k++) put += fabs(f[k]) <= CORNER_ON;
+  if (!put) goto done; /* none on the offset: the rings stay as they are */
+  put = 0;
   for (size_t i = 0; i < r->nrings && !rc; i++) {
     size_t len = gr_ring_len(r, i);
     const double *p = gr_ring_xy(r, i);
