@@ -29,6 +29,14 @@ int gr_clip_seg(double px, double py, double qx, double qy, const double lo[2],
 
 int gr_clip_open_dir(int dir) { return dir == GR_DIR_THIN ? GR_DIR_THIN : 2; }
 
+/* Add an open piece of m points, unless it has no length (all its points
+ * one: a polyline touching the box at a vertex on its border). */
+static int add_piece(gr_layer *out, int kind, int odir, const double *bf, size_t m) {
+  size_t k = 1;
+  while (k < m && bf[2 * k] == bf[0] && bf[2 * k + 1] == bf[1]) k++;
+  return k < m ? gr_layer_add(out, GR_OPEN, kind, 0, odir, bf, m) : GR_OK;
+}
+
 int gr_clip_poly(const double *p, size_t n, int closed, int kind, int dir,
                  const double lo[2], const double hi[2], gr_layer *out,
                  double **buf, size_t *cap) {
@@ -54,7 +62,7 @@ int gr_clip_poly(const double *p, size_t n, int closed, int kind, int dir,
     double t0, t1;
     if (!gr_clip_seg(ax, ay, bx, by, lo, hi, &t0, &t1)) continue;
     if (t0 > 0 || m == 0) {
-      if (m >= 2 && gr_layer_add(out, GR_OPEN, kind, 0, odir, bf, m)) return GR_EMEM;
+      if (m >= 2 && add_piece(out, kind, odir, bf, m)) return GR_EMEM;
       bf[0] = ax + t0 * (bx - ax);
       bf[1] = ay + t0 * (by - ay);
       m = 1;
@@ -63,11 +71,11 @@ int gr_clip_poly(const double *p, size_t n, int closed, int kind, int dir,
     bf[2 * m + 1] = t1 < 1 ? ay + t1 * (by - ay) : by;
     m++;
     if (t1 < 1) {
-      if (m >= 2 && gr_layer_add(out, GR_OPEN, kind, 0, odir, bf, m)) return GR_EMEM;
+      if (m >= 2 && add_piece(out, kind, odir, bf, m)) return GR_EMEM;
       m = 0;
     }
   }
-  if (m >= 2 && gr_layer_add(out, GR_OPEN, kind, 0, odir, bf, m)) return GR_EMEM;
+  if (m >= 2 && add_piece(out, kind, odir, bf, m)) return GR_EMEM;
   return GR_OK;
 }
 

@@ -15,9 +15,11 @@
  * each vertex moves to the intersection of its two edges' lines shifted by b
  * to the left (inside, for correctly oriented rings). Exact for convex
  * polygons; a ring whose area changes sign or vanishes is dropped. */
-int gr_hatch_miter_offset(const gr_rings *in, double b, double cell, const double *box, gr_rings *out, gr_err *e) {
+int gr_hatch_miter_offset(const gr_rings *in, double b, double cell, const double *box, const double *cut,
+                          gr_rings *out, gr_err *e) {
   (void)cell;
   (void)box;
+  (void)cut;
   gr_rings_clear(out);
   for (size_t r = 0; r < in->nrings; r++) {
     const double *p = gr_ring_xy(in, r);
@@ -65,8 +67,9 @@ int gr_hatch_miter_offset(const gr_rings *in, double b, double cell, const doubl
  * the grid is sampled again at one slice cell and refined from there as
  * before. */
 #define OFFSET_GRID 2.0
-static int offset_default(const gr_rings *in, double b, double cell, const double *box, gr_rings *out, gr_err *e) {
-  return gr_offset_rings_coarse(in, b, cell, OFFSET_GRID, 1e-6, GR_OFFSET_CHORD_TOL, box, out, e);
+static int offset_default(const gr_rings *in, double b, double cell, const double *box, const double *cut,
+                          gr_rings *out, gr_err *e) {
+  return gr_offset_rings_coarse(in, b, cell, OFFSET_GRID, 1e-6, GR_OFFSET_CHORD_TOL, box, cut, out, e);
 }
 
 static gr_offset_fn pick_offset(const gr_hatch_opts *o) {
@@ -571,15 +574,21 @@ static void mark_hit(const gr_rings *sec, const int *depth, const double *box, c
     const double *bb = box + 4 * r;
     if ((depth[r] & 1) || depth[r] <= bd || q[0] < bb[0] || q[0] > bb[2] || q[1] < bb[1] || q[1] > bb[3])
       continue;
-    gr_rings one = {0};
-    one.xy = (double *)gr_ring_xy(sec, r);
-    size_t st[2] = {0, gr_ring_len(sec, r)};
-    one.start = st;
-    one.nrings = 1;
-    one.npts = st[1];
-    if (gr_rings_contains(&one, q[0], q[1])) { best = (int)r; bd = depth[r]; }
+    if (gr_ring_contains(sec, r, q[0], q[1])) { best = (int)r; bd = depth[r]; }
   }
   if (best >= 0) hit[best] = 1;
+}
+
+/* A point of offset ring i inside the section: its first vertex, or with a
+ * cut (whose sides the offset moved out) its first vertex strictly inside
+ * the cut's rectangle (NULL: none; the ring runs wholly beyond the cut). */
+static const double *ring_point_inside(const gr_rings *ofs, size_t i, const double *cut) {
+  const double *p = gr_ring_xy(ofs, i);
+  size_t n = gr_ring_len(ofs, i);
+  for (size_t k = 0; k < n; k++)
+    if (!cut || (p[2 * k] > cut[0] && p[2 * k] < cut[2] && p[2 * k + 1] > cut[1] && p[2 * k + 1] < cut[3]))
+      return p + 2 * k;
+  return NULL;
 }
 
 /* Emit every ring of r as a closed contour block. */
@@ -618,6 +627,7 @@ static int contours_region(const gr_rings *section, const gr_hatch_opts *o, gr_l
   double h = nc == 0 ? b + o->gap : b + (nc - 1) * d + o->gap;
   rep->hatch_offset = h;
   gr_offset_fn off = pick_offset(o);
+  const double *cut = isnan(o->cut[0]) ? NULL : o->cut;
   gr_rings *sec = gr_rings_new(), *ofs = gr_rings_new();
   char *hit = NULL;
   int *depth = NULL;
@@ -626,7 +636,7 @@ static int contours_region(const gr_rings *section, const gr_hatch_opts *o, gr_l
   if (gr_rings_copy(sec, section)) { rc = gr_fail(e, GR_EMEM, "hatch: out of memory"); goto done; }
   if ((rc = gr_rings_nest(sec, e))) goto done;
   /* offset by b: the first contour, and the thin-wall test */
-  if ((rc = off(sec, b, cell, o->thin_box, ofs, e))) goto done;
+  if ((rc = off(sec, b, cell, o->thin_box, cut, ofs, e))) goto done;
   if (nc > 0 && (rc = emit_rings(ofs, o, cl, rep, e))) goto done;
   /* which components did the offset by b reach? (deepest outer ring
    * containing a point of each offset ring; bounding boxes first) */
@@ -636,17 +646,17 @@ static int contours_region(const gr_rings *section, const gr_hatch_opts *o, gr_l
   if (!hit || !depth || !box) { rc = gr_fail(e, GR_EMEM, "hatch: out of memory"); goto done; }
   for (size_t r = 0; r < sec->nrings; r++) {
     depth[r] = ring_depth(sec, r);
-    const double *q = gr_ring_xy(sec, r);
-    double *bb = box + 4 * r;
-    bb[0] = bb[1] = INFINITY;
-    bb[2] = bb[3] = -INFINITY;
-    for (size_t k = 0; k < gr_ring_len(sec, r); k++) {
-      bb[0] = fmin(bb[0], q[2 * k]); bb[1] = fmin(bb[1], q[2 * k + 1]);
-      bb[2] = fmax(bb[2], q[2 * k]); bb[3] = fmax(bb[3], q[2 * k + 1]);
-    }
+    gr_ring_box(sec, r, box + 4 * r);
   }
   for (size_t i = 0; i < ofs->nrings; i++)
-    if (gr_ring_len(ofs, i) > 0) mark_hit(sec, depth, box, gr_ring_xy(ofs, i), hit);
+    if (gr_ring_len(ofs, i) > 0 && ring_point_inside(ofs, i, cut))
+      mark_hit(sec, depth, box, ring_point_inside(ofs, i, cut), hit);
+  /* a component reaching the cut goes on beyond it: no sliver of its own
+   * (its offset may run wholly outside the cut, where the sides moved out) */
+  for (size_t r = 0; r < sec->nrings && cut; r++)
+    if (!(depth[r] & 1) && (box[4 * r] <= cut[0] + 1e-9 || box[4 * r + 1] <= cut[1] + 1e-9 ||
+                            box[4 * r + 2] >= cut[2] - 1e-9 || box[4 * r + 3] >= cut[3] - 1e-9))
+      hit[r] = 1;
   /* slivers the contour misses: centre lines; a component neither reached
    * nor seen by them gets the fallback line */
   size_t tb0 = cl->nb;
@@ -661,14 +671,14 @@ static int contours_region(const gr_rings *section, const gr_hatch_opts *o, gr_l
   double last = b; /* the offset held in ofs */
   for (int i = 1; i < nc; i++) {
     last = b + i * d;
-    if ((rc = off(sec, last, cell, o->thin_box, ofs, e))) goto done;
+    if ((rc = off(sec, last, cell, o->thin_box, cut, ofs, e))) goto done;
     if ((rc = emit_rings(ofs, o, cl, rep, e))) goto done;
   }
   if (h == last) { /* default gap: the hatch region is the last contour */
     gr_rings t = *reg; /* take the offset's arrays, hand reg's back to be freed */
     *reg = *ofs;
     *ofs = t;
-  } else if ((rc = off(sec, h, cell, o->thin_box, reg, e))) goto done;
+  } else if ((rc = off(sec, h, cell, o->thin_box, cut, reg, e))) goto done;
 done:
   free(hit); free(depth); free(box);
   gr_rings_free(sec); gr_rings_free(ofs);

@@ -470,6 +470,7 @@ static int stepped_layer(const gr_job *j, const fs_key *k, gr_tlayer **out, gr_e
   if (!differ) return GR_OK;
   gr_tlayer *st = calloc(1, sizeof *st);
   if (!st || !(st->section = gr_rings_new())) { free(st); return gr_fail(e, GR_EMEM, "out of memory"); }
+  st->cut[0] = st->cut[1] = st->cut[2] = st->cut[3] = NAN; /* its box sides lie just inside the windows' */
   const gr_rings *nb[9];
   for (int q = 0; q < 9; q++) nb[q] = k->nb[q] ? k->nb[q]->section : NULL;
   int rc = gr_fstep_section(j->o.cell, gr_tmpl_window(&j->o), nb, st->section, e);

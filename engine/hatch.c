@@ -26,6 +26,7 @@ gr_hatch_opts gr_hatch_defaults(void) {
   o.offset = NULL;
   o.thin_box[0] = o.thin_box[1] = -INFINITY;
   o.thin_box[2] = o.thin_box[3] = INFINITY;
+  o.cut[0] = o.cut[1] = o.cut[2] = o.cut[3] = NAN;
   return o;
 }
 
@@ -64,6 +65,10 @@ int gr_hatch_check(const gr_hatch_opts *o, gr_err *e) {
   if (!(o->thin_box[0] <= o->thin_box[2]) || !(o->thin_box[1] <= o->thin_box[3]))
     return gr_fail(e, GR_EARG, "hatch thin_box must be {x0, y0, x1, y1} with x0 <= x1 and y0 <= y1, got {%g, %g, %g, %g}",
                    o->thin_box[0], o->thin_box[1], o->thin_box[2], o->thin_box[3]);
+  if (!isnan(o->cut[0]) && !(o->cut[0] < o->cut[2] && o->cut[1] < o->cut[3] && isfinite(o->cut[0]) &&
+                             isfinite(o->cut[1]) && isfinite(o->cut[2]) && isfinite(o->cut[3])))
+    return gr_fail(e, GR_EARG, "hatch cut must be NaN or {x0, y0, x1, y1} with x0 < x1 and y0 < y1, got {%g, %g, %g, %g}",
+                   o->cut[0], o->cut[1], o->cut[2], o->cut[3]);
   return GR_OK;
 }
 

@@ -43,10 +43,11 @@ enum gr_hatch_pattern {
   GR_ISLAND = 2    /* checkerboard islands, direction alternating 90 degrees */
 };
 
-/* Inward offset of a region (same contract as gr_offset_rings_opt in
+/* Inward offset of a region (same contract as gr_offset_rings_coarse in
  * slice.h: box, x0 y0 x1 y1 or NULL, where the offset's parts narrower than
- * its grid are looked for). */
-typedef int (*gr_offset_fn)(const gr_rings *in, double b, double cell, const double *box,
+ * its grid are looked for; cut, x0 y0 x1 y1 or NULL, the rectangle the
+ * region was cut to, whose sides are no walls). */
+typedef int (*gr_offset_fn)(const gr_rings *in, double b, double cell, const double *box, const double *cut,
                             gr_rings *out, gr_err *e);
 
 typedef struct gr_hatch_opts {
@@ -67,11 +68,15 @@ typedef struct gr_hatch_opts {
   double thin_box[4];  /* thin walls are looked for only where they reach this box
                           (x0, y0, x1, y1, mm; default everywhere): a section cut from a
                           larger one has slivers along the cut that are not walls */
+  double cut[4];       /* the rectangle the section was cut to (x0, y0, x1, y1, mm): its
+                          edges lying on it are no walls, and the offsets move them out
+                          (the contours and region beyond the rectangle's sides differ);
+                          NaN (the default): none */
 } gr_hatch_opts;
 
 /* Defaults: spacing 0.1, b = d/2, 1 contour, contours first, gap 0,
  * parallel, alternate on, angle 45, island 5, origin (0,0), min length 0,
- * laser 0, cell d/4, offset gr_offset_rings. */
+ * laser 0, cell d/4, offset gr_offset_rings, thin_box everywhere, no cut. */
 gr_hatch_opts gr_hatch_defaults(void);
 
 typedef struct gr_hatch_report {
@@ -112,8 +117,8 @@ int gr_hatch_region(const gr_rings *region, const gr_hatch_opts *o,
  * lines shifted inward by b. Exact for convex polygons (a regular N-gon
  * stays a regular N-gon); rings that collapse are dropped; no
  * self-intersection handling, so use gr_offset_rings for general shapes.
- * Same contract as gr_offset_fn (cell and box unused). */
-int gr_hatch_miter_offset(const gr_rings *in, double b, double cell, const double *box,
+ * Same contract as gr_offset_fn (cell, box and cut unused). */
+int gr_hatch_miter_offset(const gr_rings *in, double b, double cell, const double *box, const double *cut,
                           gr_rings *out, gr_err *e);
 
 /* Layer rotation: first + k*increment in [0, 360) degrees, k the GLOBAL

@@ -74,7 +74,7 @@ void gr_sha256_hex(const void *data, size_t n, char out[65]);
  * A template whose
  * signature begins otherwise was built under an older rule: its key is never
  * asked for again, `gradus kb list` marks it stale and prune removes it. */
-#define GR_TEMPLATE_GEOMETRY "{gradus_template: 18, grading: voxel-owned,"
+#define GR_TEMPLATE_GEOMETRY "{gradus_template: 19, grading: voxel-owned,"
 /* 1 when a signature is a Gradus template's of an older engine geometry
  * (it begins with "{gradus_template: " but not with GR_TEMPLATE_GEOMETRY). */
 int gr_kb_stale(const char *signature);

@@ -67,7 +67,18 @@ double gr_rings_area(const gr_rings *r) {
   return a;
 }
 
-static int ring_contains(const gr_rings *r, size_t i, double x, double y) {
+void gr_ring_box(const gr_rings *r, size_t i, double b[4]) {
+  const double *p = gr_ring_xy(r, i);
+  size_t n = gr_ring_len(r, i);
+  b[0] = b[1] = INFINITY;
+  b[2] = b[3] = -INFINITY;
+  for (size_t k = 0; k < n; k++) {
+    b[0] = fmin(b[0], p[2 * k]); b[2] = fmax(b[2], p[2 * k]);
+    b[1] = fmin(b[1], p[2 * k + 1]); b[3] = fmax(b[3], p[2 * k + 1]);
+  }
+}
+
+int gr_ring_contains(const gr_rings *r, size_t i, double x, double y) {
   const double *p = gr_ring_xy(r, i);
   size_t n = gr_ring_len(r, i);
   int in = 0;
@@ -81,7 +92,7 @@ static int ring_contains(const gr_rings *r, size_t i, double x, double y) {
 
 int gr_rings_contains(const gr_rings *r, double x, double y) {
   int in = 0;
-  for (size_t i = 0; i < r->nrings; i++) in ^= ring_contains(r, i, x, y);
+  for (size_t i = 0; i < r->nrings; i++) in ^= gr_ring_contains(r, i, x, y);
   return in;
 }
 
@@ -109,15 +120,8 @@ int gr_rings_nest(gr_rings *r, gr_err *e) {
     return gr_fail(e, GR_EMEM, "out of memory nesting %zu rings", n);
   }
   for (size_t i = 0; i < n; i++) {
-    const double *p = gr_ring_xy(r, i);
-    double *b = box + 5 * i;
-    b[0] = b[2] = p[0];
-    b[1] = b[3] = p[1];
-    for (size_t k = 1; k < gr_ring_len(r, i); k++) {
-      b[0] = fmin(b[0], p[2 * k]); b[2] = fmax(b[2], p[2 * k]);
-      b[1] = fmin(b[1], p[2 * k + 1]); b[3] = fmax(b[3], p[2 * k + 1]);
-    }
-    b[4] = fabs(gr_ring_area(r, i));
+    gr_ring_box(r, i, box + 5 * i);
+    box[5 * i + 4] = fabs(gr_ring_area(r, i));
   }
   for (size_t i = 0; i < n; i++) {
     const double *p = gr_ring_xy(r, i);
@@ -130,7 +134,7 @@ int gr_rings_nest(gr_rings *r, gr_err *e) {
       if (b[4] <= bi[4] || b[0] > bi[0] + 1e-9 || b[1] > bi[1] + 1e-9 || b[2] < bi[2] - 1e-9 || b[3] < bi[3] - 1e-9)
         continue;
       if (best >= 0 && box[5 * best + 4] <= b[4]) continue;
-      if (ring_contains(r, j, p[0], p[1])) best = (long)j;
+      if (gr_ring_contains(r, j, p[0], p[1])) best = (long)j;
     }
     r->parent[i] = (int)best;
   }

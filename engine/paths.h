@@ -39,6 +39,10 @@ double gr_ring_area(const gr_rings *r, size_t i);   /* signed, CCW > 0, mm^2 */
 double gr_ring_length(const gr_rings *r, size_t i); /* perimeter, mm */
 /* Sum of signed areas: with correct orientation, the area of the region. */
 double gr_rings_area(const gr_rings *r);
+/* Bounding box of ring i: x0 y0 x1 y1 into b (mm). */
+void gr_ring_box(const gr_rings *r, size_t i, double b[4]);
+/* Even-odd test of ring i alone (1 inside). */
+int gr_ring_contains(const gr_rings *r, size_t i, double x, double y);
 /* Even-odd point-in-region test (1 inside). */
 int gr_rings_contains(const gr_rings *r, double x, double y);
 /* Compute parent[] (the smallest ring containing each ring) and reorient:

@@ -645,13 +645,10 @@ done:
   return rc;
 }
 
-int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
-                        double chord_tol, const double *box, gr_rings *out, gr_err *e) {
-  return gr_offset_rings_coarse(in, b, cell, 1, tol, chord_tol, box, out, e);
-}
-
-int gr_offset_rings_coarse(const gr_rings *in, double b, double cell, double coarse, double tol,
-                           double chord_tol, const double *box, gr_rings *out, gr_err *e) {
+/* The offset straight from the edges (direct: 1, 2 simplified; where
+ * simple) or on the grid. */
+static int offset_rings(const gr_rings *in, double b, double cell, double coarse, double tol, double chord_tol,
+                        const double *box, const double *cut, int direct, gr_rings *out, gr_err *e) {
   if (!(b >= 0) || !isfinite(b)) return gr_fail(e, GR_EARG, "offset distance b must be >= 0, got %g", b);
   if (!(cell > 0) || !isfinite(cell)) return gr_fail(e, GR_EARG, "cell must be > 0, got %g", cell);
   if (!(coarse >= 1) || !isfinite(coarse)) return gr_fail(e, GR_EARG, "coarse must be >= 1, got %g", coarse);
@@ -666,6 +663,15 @@ int gr_offset_rings_coarse(const gr_rings *in, double b, double cell, double coa
     if (!rc) rc = gr_rings_nest(out, e);
     gr_rings_free(src);
     return rc;
+  }
+  if (direct) { /* straight from the edges where the raw offset is simple */
+    int done = 0;
+    rc = gr_offset_rings_direct(src, b, chord_tol, coarse * cell, box, cut, direct > 1, out, &done, e);
+    if (rc || done) {
+      if (!rc) rc = gr_rings_nest(out, e);
+      gr_rings_free(src);
+      return rc;
+    }
   }
   poly_dist d;
   gr_ms_grid g;
@@ -701,6 +707,21 @@ int gr_offset_rings_coarse(const gr_rings *in, double b, double cell, double coa
   pd_free(&d);
   gr_rings_free(src);
   return rc;
+}
+
+int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
+                        double chord_tol, const double *box, gr_rings *out, gr_err *e) {
+  return offset_rings(in, b, cell, 1, tol, chord_tol, box, NULL, 1, out, e);
+}
+
+int gr_offset_rings_coarse(const gr_rings *in, double b, double cell, double coarse, double tol,
+                           double chord_tol, const double *box, const double *cut, gr_rings *out, gr_err *e) {
+  return offset_rings(in, b, cell, coarse, tol, chord_tol, box, cut, 2, out, e);
+}
+
+int gr_offset_rings_grid(const gr_rings *in, double b, double cell, double coarse, double tol,
+                         double chord_tol, const double *box, gr_rings *out, gr_err *e) {
+  return offset_rings(in, b, cell, coarse, tol, chord_tol, box, NULL, 0, out, e);
 }
 
 int gr_offset_rings(const gr_rings *in, double b, double cell, gr_rings *out,

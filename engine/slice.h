@@ -92,7 +92,32 @@ int gr_offset_rings_opt(const gr_rings *in, double b, double cell, double tol,
  * probes find a strip hidden between nodes, the grid is sampled again at
  * cell and refined from there as gr_offset_rings_opt's is. */
 int gr_offset_rings_coarse(const gr_rings *in, double b, double cell, double coarse, double tol,
-                           double chord_tol, const double *box, gr_rings *out, gr_err *e);
+                           double chord_tol, const double *box, const double *cut, gr_rings *out, gr_err *e);
+/* gr_offset_rings_opt and _coarse (chord_tol > 0) first try the offset
+ * straight from the edges (gr_offset_rings_direct below: _opt keeps every
+ * point, _coarse, the templates', simplifies and takes the cut) and sample
+ * the grid only where it declines; this one always samples the grid (the
+ * reference the tests compare the direct offset with). */
+int gr_offset_rings_grid(const gr_rings *in, double b, double cell, double coarse, double tol,
+                         double chord_tol, const double *box, gr_rings *out, gr_err *e);
+
+/* The same straight from the edges of nested rings `in` (offsetdirect.c):
+ * each edge moved by b, convex corners mitred, arcs around reflex vertices
+ * as chords within chord_tol (> 0). box (x0 y0 x1 y1, or NULL): where the
+ * offset is needed; rings lying wholly farther than 2b outside it, whose
+ * offsets cannot reach it, are left out. cut (x0 y0 x1 y1, or NULL): the
+ * rectangle a window's section was cut to; its edges along the rectangle
+ * are no walls (the part goes on beyond) and move out by 2b (the offset
+ * differs from the grid's only beyond the window's sides). Where no
+ * two raw segments meet (tested in buckets of `bucket` mm), the rings of
+ * positive winding number are the offset: into out (not nested), *done =
+ * 1; simplify: 1 to drop the points not needed (arcs' chords to 0.4 and
+ * the rings' simplification to 0.6 of chord_tol; 0: every point kept, on
+ * the offset of every vertex of `in`, arcs to chord_tol, as a caller
+ * sorting points by their nearest boundary point needs). Otherwise (a wall narrower than 2b, an offset closing over a tip)
+ * *done = 0 and out is untouched. */
+int gr_offset_rings_direct(const gr_rings *in, double b, double chord_tol, double bucket, const double *box,
+                           const double *cut, int simplify, gr_rings *out, int *done, gr_err *e);
 
 /* Largest in-plane distance from a point of the region to its boundary
  * (the inradius of the widest component), sampled on a grid of `cell` mm,

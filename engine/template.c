@@ -45,6 +45,7 @@ gr_tmpl *gr_tmpl_new(int ja, int jb) {
   t->nl = jb - ja;
   t->l = calloc(t->nl > 0 ? t->nl : 1, sizeof *t->l);
   if (!t->l) { free(t); return NULL; }
+  for (int q = 0; q < t->nl; q++) t->l[q].cut[0] = t->l[q].cut[1] = t->l[q].cut[2] = t->l[q].cut[3] = NAN;
   return t;
 }
 
@@ -256,6 +257,7 @@ static gr_hatch_opts tmpl_hatch_opts(const gr_job_opts *opt) {
 int gr_tmpl_paths(const gr_job_opts *opt, gr_tlayer *tl, int faces, gr_err *e) {
   double box_lo[2] = {0, 0}, box_hi[2] = {opt->cell[0], opt->cell[1]};
   gr_hatch_opts ho = tmpl_hatch_opts(opt);
+  memcpy(ho.cut, tl->cut, sizeof ho.cut); /* the window's sides are no walls */
   if (!tl->region && !(tl->region = gr_rings_new())) return gr_fail(e, GR_EMEM, "out of memory");
   if (!tl->paths && !(tl->paths = gr_layer_new(0))) return gr_fail(e, GR_EMEM, "out of memory");
   gr_rings_clear(tl->region);
@@ -314,6 +316,11 @@ int gr_tmpl_layers(const gr_tmpl_in *in, gr_tmpl *t, const gr_field *f, const gr
     double z = gr_grid_mid(in->grid, g0 + t->j0 + q);
     if ((rc = tab ? gr_cptab_slice(tab, f, o, q, z, &so, tl->section, e) : gr_slice_field(f, z, &so, tl->section, e))) break;
     gr_rings_translate(tl->section, -o[0], -o[1]);
+    /* the window's sides where the translation put them (offsetdirect.c allows for rounding) */
+    tl->cut[0] = so.lo[0] + -o[0];
+    tl->cut[1] = so.lo[1] + -o[1];
+    tl->cut[2] = so.hi[0] + -o[0];
+    tl->cut[3] = so.hi[1] + -o[1];
     tl->area = gr_clip_area(tl->section, box_lo, box_hi);
     if ((rc = gr_tmpl_paths(opt, tl, in->faces, e))) break;
     tl->q[0] = tl->q[1] = tl->q[2] = NAN;

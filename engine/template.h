@@ -31,6 +31,8 @@ typedef struct gr_tlayer {
   double area;        /* section area inside the voxel square, mm^2 */
   double q[3];        /* verify(): pore, overmelt, max contour deviation (mm); NaN = not verified */
   gr_rings *section;  /* window, voxel-local */
+  double cut[4];      /* the window's rectangle as the section's coordinates have it
+                         (its edges along it are cuts, no walls); NaN: none */
   gr_rings *region;   /* hatch region, voxel-local */
   gr_layer *paths;    /* contours (+ thin-wall scans) clipped to [0,L]^2 */
   gr_layer *faces;    /* contour segments along the voxel's sides at the contour

@@ -273,7 +273,7 @@ TEST(coarse_grid_keeps_narrow_strips) {
   const double b = 0.05, cell = 0.025, ctol = 5e-4;
   double area[2] = {0, 0};
   for (int c = 0; c < 2; c++) {
-    int rc = gr_offset_rings_coarse(r, b, cell, c ? 2 : 1, 1e-6, ctol, NULL, o[c], &e);
+    int rc = gr_offset_rings_grid(r, b, cell, c ? 2 : 1, 1e-6, ctol, NULL, o[c], &e);
     CHECK(rc == 0, "%s", e.msg);
     CHECK(o[c]->nrings == 1, "coarse %d: %zu rings (the strip along the wall lost)", c + 1, o[c]->nrings);
     double worst = 0, wmid = 0;
