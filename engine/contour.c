@@ -648,9 +648,10 @@ static int contours_region(const gr_rings *section, const gr_hatch_opts *o, gr_l
     depth[r] = ring_depth(sec, r);
     gr_ring_box(sec, r, box + 4 * r);
   }
-  for (size_t i = 0; i < ofs->nrings; i++)
-    if (gr_ring_len(ofs, i) > 0 && ring_point_inside(ofs, i, cut))
-      mark_hit(sec, depth, box, ring_point_inside(ofs, i, cut), hit);
+  for (size_t i = 0; i < ofs->nrings; i++) {
+    const double *q = ring_point_inside(ofs, i, cut);
+    if (q) mark_hit(sec, depth, box, q, hit);
+  }
   /* a component reaching the cut goes on beyond it: no sliver of its own
    * (its offset may run wholly outside the cut, where the sides moved out) */
   for (size_t r = 0; r < sec->nrings && cut; r++)

@@ -146,15 +146,14 @@ static int edges_init(const double *p, size_t n, double b, double tol, const dou
  * mitred joins (the neighbours' lines meet instead), repeatedly. Returns the live edges
  * left (< 3: the ring closes up) with *first one of them, -1 to decline
  * (such an edge at an arc, or neighbours turning right: the sides of a
- * spike narrower than 2b) or -2 out of memory. stack: 3 n ints. */
+ * spike narrower than 2b). An edge is live while its previous one links to
+ * it. stack: 3 n ints. */
 static int prune(oedge *E, int n, int *stack, int *first) {
   int live = n, top = 0;
   for (int k = n - 1; k >= 0; k--) stack[top++] = k;
-  char *dead = calloc((size_t)n, 1);
-  if (!dead) return -2;
   while (top > 0 && live >= 3) {
     int k = stack[--top];
-    if (dead[k]) continue;
+    if (E[E[k].prev].next != k) continue; /* swallowed before (its neighbours link past it) */
     oedge *g = E + k, *c = E + g->next;
     double run = (c->e[0] - g->s[0]) * g->u[0] + (c->e[1] - g->s[1]) * g->u[1];
     if (run > DIRECT_EPS) continue; /* (one of no length, as where a window's corner pulls back by a border edge's length, goes too) */
@@ -165,14 +164,12 @@ static int prune(oedge *E, int n, int *stack, int *first) {
     lines_meet(a, c, den);
     a->next = g->next;
     c->prev = g->prev;
-    dead[k] = 1;
     live--;
     stack[top++] = g->prev;
     stack[top++] = g->next;
   }
   for (int k = 0; k < n && live > 0; k++)
-    if (!dead[k]) { *first = k; break; }
-  free(dead);
+    if (E[E[k].prev].next == k) { *first = k; break; }
   return live;
 }
 
@@ -220,8 +217,7 @@ static int raw_rings(const gr_rings *in, double b, double tol, const double *box
     if (n < 3 || far_outside(p, n, box, 2 * b)) continue; /* no area, or too far to matter */
     if (!edges_init(p, n, b, tol, cut, E)) { ok = 0; break; }
     int first = 0, live = prune(E, (int)n, stack, &first);
-    if (live == -2) ok = -1;
-    else if (live < 0 || (live < 3 && gr_ring_area(in, i) < 0)) ok = 0; /* a hole cannot close up */
+    if (live < 0 || (live < 3 && gr_ring_area(in, i) < 0)) ok = 0; /* a hole cannot close up */
     else if (live >= 3 && emit_ring(E, first, b, th, raw)) ok = -1;
   }
   free(p); free(E); free(stack);
@@ -232,15 +228,6 @@ static double orient(const double *a, const double *b, const double *c) {
   return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
 }
 
-/* Squared distance from p to segment a-b. */
-static double seg_d2(const double *p, const double *a, const double *b) {
-  double ex = b[0] - a[0], ey = b[1] - a[1], L2 = ex * ex + ey * ey;
-  double t = L2 > 0 ? ((p[0] - a[0]) * ex + (p[1] - a[1]) * ey) / L2 : 0;
-  t = t < 0 ? 0 : t > 1 ? 1 : t;
-  double dx = a[0] + t * ex - p[0], dy = a[1] + t * ey - p[1];
-  return dx * dx + dy * dy;
-}
-
 /* Whether segments a0-a1 and b0-b1 cross or come within DIRECT_EPS. */
 static int seg_meet(const double *a0, const double *a1, const double *b0, const double *b1) {
   if (gr_hi(a0[0], a1[0]) + DIRECT_EPS < gr_lo(b0[0], b1[0]) || gr_hi(b0[0], b1[0]) + DIRECT_EPS < gr_lo(a0[0], a1[0]) ||
@@ -248,8 +235,8 @@ static int seg_meet(const double *a0, const double *a1, const double *b0, const 
     return 0; /* boxes apart */
   double o1 = orient(a0, a1, b0), o2 = orient(a0, a1, b1), o3 = orient(b0, b1, a0), o4 = orient(b0, b1, a1);
   if (((o1 < 0 && o2 > 0) || (o1 > 0 && o2 < 0)) && ((o3 < 0 && o4 > 0) || (o3 > 0 && o4 < 0))) return 1;
-  double e2 = DIRECT_EPS * DIRECT_EPS;
-  return seg_d2(b0, a0, a1) < e2 || seg_d2(b1, a0, a1) < e2 || seg_d2(a0, b0, b1) < e2 || seg_d2(a1, b0, b1) < e2;
+  return gr_seg_dist(b0, a0, a1) < DIRECT_EPS || gr_seg_dist(b1, a0, a1) < DIRECT_EPS ||
+         gr_seg_dist(a0, b0, b1) < DIRECT_EPS || gr_seg_dist(a1, b0, b1) < DIRECT_EPS;
 }
 
 typedef struct seg_index {

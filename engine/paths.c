@@ -181,7 +181,7 @@ int gr_rings_copy(gr_rings *dst, const gr_rings *src) {
 }
 
 /* Distance from p to segment ab. */
-static double seg_dist(const double *p, const double *a, const double *b) {
+double gr_seg_dist(const double *p, const double *a, const double *b) {
   double ex = b[0] - a[0], ey = b[1] - a[1], L2 = ex * ex + ey * ey;
   double t = L2 > 0 ? ((p[0] - a[0]) * ex + (p[1] - a[1]) * ey) / L2 : 0;
   t = t < 0 ? 0 : t > 1 ? 1 : t;
@@ -216,7 +216,7 @@ int gr_rings_simplify(gr_rings *r, double tol) {
         size_t worst = 0;
         double dw = tol;
         for (size_t k = a + 1; k < b; k++) {
-          double d = seg_dist(p + 2 * k, pa, pb);
+          double d = gr_seg_dist(p + 2 * k, pa, pb);
           if (d > dw) { dw = d; worst = k; }
         }
         if (!worst) continue;

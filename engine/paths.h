@@ -39,6 +39,8 @@ double gr_ring_area(const gr_rings *r, size_t i);   /* signed, CCW > 0, mm^2 */
 double gr_ring_length(const gr_rings *r, size_t i); /* perimeter, mm */
 /* Sum of signed areas: with correct orientation, the area of the region. */
 double gr_rings_area(const gr_rings *r);
+/* Distance from point p to segment a-b (mm). */
+double gr_seg_dist(const double *p, const double *a, const double *b);
 /* Bounding box of ring i: x0 y0 x1 y1 into b (mm). */
 void gr_ring_box(const gr_rings *r, size_t i, double b[4]);
 /* Even-odd test of ring i alone (1 inside). */
