@@ -414,39 +414,99 @@ static int in_box(const double box[4], double x, double y) {
   return x >= box[0] && y >= box[1] && x <= box[2] && y <= box[3];
 }
 
+/* The core's edges for all_covered, by their first point's global index g
+ * (nxt[g]: the point after g in its ring). A query tries the edge that
+ * answered the last one and its neighbours first (consecutive samples
+ * along the section mostly lie beside consecutive core edges), then scans
+ * all edges; after CORE_SCANS scans (a layer with many uncovered samples)
+ * the bucketed polygon distance takes over. */
+#define CORE_SCANS 32
+static const int CORE_TRY[] = {0, 1, -1, 2, -2};
+typedef struct core_edges {
+  const gr_rings *r;
+  size_t *nxt, hint, scans, pdhint;
+  double b;
+  gr_polydist *pd;
+} core_edges;
+
+static int core_edge_within(const core_edges *c, size_t g, const double *p, double r) {
+  return gr_seg_dist(p, c->r->xy + 2 * g, c->r->xy + 2 * c->nxt[g]) <= r;
+}
+
+/* Whether the segment pq lies within r of the core edge near the hint that
+ * holds both its ends (the distance to a segment is convex along a line);
+ * 0 says nothing about the other edges. */
+static int core_covers(core_edges *c, const double *p, const double *q, double r) {
+  for (size_t k = 0; k < sizeof CORE_TRY / sizeof *CORE_TRY && c->r->npts; k++) {
+    size_t g = (c->hint + c->r->npts + (size_t)(ptrdiff_t)CORE_TRY[k]) % c->r->npts;
+    if (core_edge_within(c, g, p, r) && core_edge_within(c, g, q, r)) return c->hint = g, 1;
+  }
+  return 0;
+}
+
+/* Whether p is within r of some core edge: 1, 0, or -1 (out of memory). */
+static int core_within(core_edges *c, const double *p, double r, gr_err *e) {
+  size_t n = c->r->npts;
+  for (size_t k = 0; k < sizeof CORE_TRY / sizeof *CORE_TRY && n; k++) {
+    size_t g = (c->hint + n + (size_t)(ptrdiff_t)CORE_TRY[k]) % n;
+    if (core_edge_within(c, g, p, r)) return c->hint = g, 1;
+  }
+  if (c->scans < CORE_SCANS) {
+    c->scans++;
+    const double *P = c->r->xy;
+    for (size_t g = 0; g < n; g++) {
+      const double *a = P + 2 * g, *b = P + 2 * c->nxt[g];
+      if (gr_lo(a[0], b[0]) - r > p[0] || gr_hi(a[0], b[0]) + r < p[0] || gr_lo(a[1], b[1]) - r > p[1] ||
+          gr_hi(a[1], b[1]) + r < p[1])
+        continue;
+      if (core_edge_within(c, g, p, r)) return c->hint = g, 1;
+    }
+    return 0;
+  }
+  if (!c->pd && !(c->pd = gr_polydist_new(c->r, c->b, e))) return -1;
+  return gr_polydist_within(c->pd, p[0], p[1], r, &c->pdhint);
+}
+
 /* Is every point of the section within b (+ tol) of the core {depth >= b},
  * whose boundary is `core` (the offset by b)? The melt of the contour at b
  * is the core grown by b, which lies inside the section and touches only the
  * component of its core, so a sliver shows as section boundary farther than
  * b from the core's rings. Boundary samples every tol, each within tol/2 of
  * the rest: a yes means no sliver deeper than tol, and the grid is skipped
- * (most layers of a lattice). */
+ * (most layers of a lattice). A section edge whose ends lie within b + tol/2
+ * of one core edge has all its samples there. */
 static int all_covered(const gr_rings *sec, const gr_rings *core, double b, double tol, const double *box,
                        double fail[4], gr_err *e) {
   fail[0] = fail[1] = INFINITY;
   fail[2] = fail[3] = -INFINITY;
-  gr_polydist *pd = core->npts ? gr_polydist_new(core, b, e) : NULL;
-  if (core->npts && !pd) return -1;
+  core_edges c = {core, malloc((core->npts + 1) * sizeof *c.nxt), 0, 0, (size_t)-1, b, NULL};
+  if (!c.nxt) return gr_fail(e, GR_EMEM, "hatch: out of memory"), -1;
+  for (size_t i = 0; i < core->nrings; i++)
+    for (size_t g = core->start[i], end = core->start[i + 1]; g < end; g++) c.nxt[g] = g + 1 < end ? g + 1 : core->start[i];
   int ok = 1;
-  size_t hint = (size_t)-1; /* the core edge that covered the last sample */
-  for (size_t r = 0; r < sec->nrings; r++) {
-    const double *p = gr_ring_xy(sec, r);
-    size_t n = gr_ring_len(sec, r);
-    for (size_t a = 0; a < n; a++) {
+  double r = b + 0.5 * tol;
+  for (size_t i = 0; i < sec->nrings && ok >= 0; i++) {
+    const double *p = gr_ring_xy(sec, i);
+    size_t n = gr_ring_len(sec, i);
+    for (size_t a = 0; a < n && ok >= 0; a++) {
       const double *q = p + 2 * ((a + 1) % n);
       double len = gr_len2d(q[0] - p[2 * a], q[1] - p[2 * a + 1]);
       int m = (int)ceil(len / tol);
+      if (core_covers(&c, p + 2 * a, q, r)) continue;
       for (int k = 0; k < m; k++) {
-        double t = (double)k / m, x = p[2 * a] + t * (q[0] - p[2 * a]), y = p[2 * a + 1] + t * (q[1] - p[2 * a + 1]);
-        if (!in_box(box, x, y)) continue;
-        if (pd && gr_polydist_within(pd, x, y, b + 0.5 * tol, &hint)) continue;
+        double t = (double)k / m, x[2] = {p[2 * a] + t * (q[0] - p[2 * a]), p[2 * a + 1] + t * (q[1] - p[2 * a + 1])};
+        if (!in_box(box, x[0], x[1])) continue;
+        int w = core->npts ? core_within(&c, x, r, e) : 0;
+        if (w < 0) { ok = -1; break; }
+        if (w) continue;
         ok = 0; /* an uncovered boundary sample: where the slivers are */
-        fail[0] = fmin(fail[0], x); fail[1] = fmin(fail[1], y);
-        fail[2] = fmax(fail[2], x); fail[3] = fmax(fail[3], y);
+        fail[0] = fmin(fail[0], x[0]); fail[1] = fmin(fail[1], x[1]);
+        fail[2] = fmax(fail[2], x[0]); fail[3] = fmax(fail[3], x[1]);
       }
     }
   }
-  gr_polydist_free(pd);
+  gr_polydist_free(c.pd);
+  free(c.nxt);
   return ok;
 }
 
@@ -460,7 +520,7 @@ static int thin_walls(const gr_rings *sec, const gr_rings *core, const gr_hatch_
   double d = o->spacing, lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
   if (!(b > 0) || sec->npts == 0) return GR_OK;
   for (size_t k = 0; k < sec->npts; k++)
-    for (int c = 0; c < 2; c++) { lo[c] = fmin(lo[c], sec->xy[2 * k + c]); hi[c] = fmax(hi[c], sec->xy[2 * k + c]); }
+    for (int c = 0; c < 2; c++) { lo[c] = gr_lo(lo[c], sec->xy[2 * k + c]); hi[c] = gr_hi(hi[c], sec->xy[2 * k + c]); }
   double h = fmin(d / THIN_CELL, b / 4);
   double fail[4], inner[4];
   int cov = all_covered(sec, core, b, h, o->thin_box, fail, e);

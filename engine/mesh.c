@@ -547,7 +547,7 @@ static int read_ply(const char *path, const char *s, size_t len, gr_mesh *m, gr_
     return gr_fail(e, GR_EPARSE, "%s: PLY header lacks vertex x y z or face elements", path);
   if (!binary) {
     for (long i = 0; i < nv; i++) {
-      double p[3], t;
+      double p[3] = {0, 0, 0}, t; /* every one set: x, y and z were found */
       for (int k = 0; k < nprop; k++) {
         if (!number(&x, &t)) return gr_fail(e, GR_EPARSE, "%s:%zu: bad vertex value", path, x.line);
         for (int d = 0; d < 3; d++) if (xyz[d] == k) p[d] = t;

@@ -70,12 +70,12 @@ double gr_rings_area(const gr_rings *r) {
 void gr_ring_box(const gr_rings *r, size_t i, double b[4]) {
   const double *p = gr_ring_xy(r, i);
   size_t n = gr_ring_len(r, i);
-  b[0] = b[1] = INFINITY;
-  b[2] = b[3] = -INFINITY;
+  double x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY; /* NaN points pass, as with fmin */
   for (size_t k = 0; k < n; k++) {
-    b[0] = fmin(b[0], p[2 * k]); b[2] = fmax(b[2], p[2 * k]);
-    b[1] = fmin(b[1], p[2 * k + 1]); b[3] = fmax(b[3], p[2 * k + 1]);
+    x0 = gr_lo(x0, p[2 * k]); x1 = gr_hi(x1, p[2 * k]);
+    y0 = gr_lo(y0, p[2 * k + 1]); y1 = gr_hi(y1, p[2 * k + 1]);
   }
+  b[0] = x0; b[1] = y0; b[2] = x1; b[3] = y1;
 }
 
 int gr_ring_contains(const gr_rings *r, size_t i, double x, double y) {
@@ -214,10 +214,20 @@ int gr_rings_simplify(gr_rings *r, double tol) {
         size_t b = stack[--ns], a = stack[--ns];
         const double *pa = p + 2 * a, *pb = p + 2 * (b % n);
         size_t worst = 0;
-        double dw = tol;
+        double dw = tol, dw2 = tol * tol;
+        /* gr_seg_dist's distance, its square first: sqrt is monotonic and
+         * sqrt(fl(x * x)) = x, so a point whose square is at most dw2 (the
+         * worst's, or tol's) is no farther, and only the others need the
+         * root; the points kept are those of the plain comparison */
+        double ex = pb[0] - pa[0], ey = pb[1] - pa[1], L2 = ex * ex + ey * ey;
         for (size_t k = a + 1; k < b; k++) {
-          double d = gr_seg_dist(p + 2 * k, pa, pb);
-          if (d > dw) { dw = d; worst = k; }
+          const double *q = p + 2 * k;
+          double t = L2 > 0 ? ((q[0] - pa[0]) * ex + (q[1] - pa[1]) * ey) / L2 : 0;
+          t = t < 0 ? 0 : t > 1 ? 1 : t;
+          double dx = pa[0] + t * ex - q[0], dy = pa[1] + t * ey - q[1], d2 = dx * dx + dy * dy;
+          if (!(d2 > dw2)) continue;
+          double d = sqrt(d2);
+          if (d > dw) { dw = d; dw2 = d2; worst = k; }
         }
         if (!worst) continue;
         keep[worst] = 1;

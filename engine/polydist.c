@@ -251,7 +251,7 @@ static int pd_gfn(void *ud, size_t n, const double *x, const double *y, double *
   (void)e;
   const poly_dist *d = ud;
   for (size_t k = 0; k < n; k++) {
-    double q[2], sd = pd_signed(d, d->seen, x[k], y[k], q), dx = x[k] - q[0], dy = y[k] - q[1];
+    double q[2] = {NAN, NAN}, sd = pd_signed(d, d->seen, x[k], y[k], q), dx = x[k] - q[0], dy = y[k] - q[1];
     double r = sqrt(dx * dx + dy * dy);
     out[k] = sd + d->b;
     double s = sd < 0 ? -1 / r : 1 / r;

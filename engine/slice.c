@@ -174,8 +174,8 @@ int gr_slice_mesh(const gr_mesh *m, double z, gr_rings *closed,
     int above[3] = {p[0][2] >= z, p[1][2] >= z, p[2][2] >= z};
     int na = above[0] + above[1] + above[2];
     if (na == 0 || na == 3) continue;
-    uint64_t k[2];
-    double q[2][2];
+    uint64_t k[2] = {0, 0}; /* set by the two edges that cross z */
+    double q[2][2] = {{0, 0}, {0, 0}};
     int c = 0;
     for (int a = 0; a < 3; a++) {
       int b = (a + 1) % 3;

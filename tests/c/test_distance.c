@@ -254,6 +254,7 @@ static int solve4(double A[4][4], double b[4], double x[4]) {
 static double p_closest(const double p[3], double h, double q[3]) {
   enum { N = 24 };
   double best = INFINITY;
+  q[0] = q[1] = q[2] = NAN; /* set with best below */
   for (int i = 0; i <= N; i++)
     for (int j = 0; j <= N; j++)
       for (int k = 0; k <= N; k++)

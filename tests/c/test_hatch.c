@@ -463,6 +463,66 @@ static gr_layer *hatch_thin(const gr_rings *r, double d, gr_hatch_report *rep, s
   return hatch_thin_in(r, d, NULL, rep, nthin, ib);
 }
 
+/* A comb: a bar [0, W] x [0, 0.5] with n teeth w wide and 0.5 long on
+ * top, 0.2 apart. */
+static gr_rings *comb(int n, double w) {
+  gr_rings *r = gr_rings_new();
+  double W = 0.2 * n + 0.2;
+  gr_rings_point(r, 0, 0);
+  gr_rings_point(r, W, 0);
+  gr_rings_point(r, W, 0.5);
+  for (int j = n - 1; j >= 0; j--) {
+    double x = 0.2 + 0.2 * j;
+    gr_rings_point(r, x + w, 0.5);
+    gr_rings_point(r, x + w, 1);
+    gr_rings_point(r, x, 1);
+    gr_rings_point(r, x, 0.5);
+  }
+  gr_rings_point(r, 0, 0.5);
+  gr_rings_close(r);
+  return r;
+}
+
+/* Many corners: the section boundary near each convex corner is farther
+ * than b from the contour's core, so the coverage check has many samples
+ * to place (past its first 32 scans it asks the bucketed distance): teeth
+ * narrower than 2b get one scan each, inside the tooth; wide ones none. */
+TEST(thin_teeth_of_a_comb) {
+  double d = 0.05, b = d / 2;
+  enum { N = 24 };
+  size_t ib[8], nt;
+  gr_hatch_report rep;
+  gr_rings *r = comb(N, 0.03);
+  gr_layer *l = hatch_thin(r, d, &rep, &nt, ib);
+  CHECK(nt == N && rep.thin_walls == N, "%zu thin scans, %d thin walls, %d teeth", nt, rep.thin_walls, N);
+  int seen[N] = {0};
+  for (size_t t = 0; t < l->nb; t++) {
+    const gr_block *B = &l->b[t];
+    const double *q = l->xy + 2 * B->start;
+    if (B->dir != GR_DIR_THIN) continue;
+    int j = (int)floor((q[0] - 0.2) / 0.2 + 0.5);
+    CHECK(j >= 0 && j < N, "scan at x = %g", q[0]);
+    if (j < 0 || j >= N) continue;
+    seen[j]++;
+    double x = 0.2 + 0.2 * j, lo = INFINITY, hi = -INFINITY;
+    for (size_t k = 0; k < B->n; k++) {
+      CHECK(q[2 * k] > x && q[2 * k] < x + 0.03, "tooth %d: point at x = %g", j, q[2 * k]);
+      lo = fmin(lo, q[2 * k + 1]);
+      hi = fmax(hi, q[2 * k + 1]);
+    }
+    /* from about where the bar's contour melts to 0.8 b short of the tip */
+    CHECK(lo > 0.5 - b && lo < 0.5 + 2 * b && hi > 1 - 2 * b && hi < 1, "tooth %d: scan y %g..%g", j, lo, hi);
+  }
+  for (int j = 0; j < N; j++) CHECK(seen[j] == 1, "tooth %d scanned %d times", j, seen[j]);
+  gr_layer_free(l);
+  gr_rings_free(r);
+  r = comb(N, 0.12);
+  l = hatch_thin(r, d, &rep, &nt, ib);
+  CHECK(nt == 0 && rep.thin_walls == 0 && rep.contours == 1, "wide teeth: %zu thin scans, %zu contours", nt, rep.contours);
+  gr_layer_free(l);
+  gr_rings_free(r);
+}
+
 /* Two strips 1 mm long, 0.03 mm wide (< 2b at d = 0.05), at y = 0 and y = 0.5. */
 static gr_rings *two_walls(void) {
   gr_rings *r = rect(0, 0, 1, 0.03);
@@ -666,6 +726,7 @@ int main(void) {
   RUN(thin_wall_scanned_and_counted);
   RUN(thin_lens_centre_line);
   RUN(thin_tail_on_thick_body);
+  RUN(thin_teeth_of_a_comb);
   RUN(thin_walls_apart_and_tiny);
   RUN(thin_walls_only_where_they_reach_the_box);
   RUN(bad_input);

@@ -68,6 +68,7 @@ static int write_file(const char *path, const void *data, size_t n) {
 }
 
 static unsigned char *read_file(const char *path, size_t *n) {
+  *n = 0;
   FILE *f = fopen(path, "rb");
   if (!f) return NULL;
   fseek(f, 0, SEEK_END);
