@@ -137,6 +137,7 @@ static int face_seg(gr_layer *l, const fline *f, int side, double ta, double tb)
   return gr_layer_add(l, GR_OPEN, GR_CONTOUR, side, 2, seg, 2);
 }
 
+#define FACE_SKIP 1e-9 /* mm: room for rounding in the Lipschitz skip below */
 static int face_lines(const gr_job_opts *o, gr_tlayer *tl) {
   if (!tl->faces && !(tl->faces = gr_layer_new(0))) return GR_EMEM;
   gr_layer_clear(tl->faces, 0);
@@ -163,7 +164,7 @@ static int face_lines(const gr_job_opts *o, gr_tlayer *tl) {
           double pa = vert ? P[0] : P[1], qa = vert ? Q[0] : Q[1];   /* across the line */
           double pl = vert ? P[1] : P[0], ql = vert ? Q[1] : Q[0];   /* along it */
           if ((pa > pos) != (qa > pos)) cr[f.nc++] = pl + (pos - pa) * (ql - pl) / (qa - pa);
-          if (fmin(pa, qa) <= pos + R && fmax(pa, qa) >= pos - R) {
+          if (gr_lo(pa, qa) <= pos + R && gr_hi(pa, qa) >= pos - R) {
             double *e4 = ed + 4 * f.ne++;
             e4[0] = P[0]; e4[1] = P[1]; e4[2] = Q[0]; e4[3] = Q[1];
           }
@@ -171,12 +172,21 @@ static int face_lines(const gr_job_opts *o, gr_tlayer *tl) {
       }
       qsort(cr, f.nc, sizeof *cr, dbl_cmp);
       fline_sort(&f, vert, tmp);
-      /* intervals of [0, L] where the value is <= -c - GR_FACE_EPS: sample, then bisect the ends */
+      /* intervals of [0, L] where the value is <= -c - GR_FACE_EPS: sample, then bisect the ends.
+       * The value is 1-Lipschitz along the line (a distance, clamped): a sample nearer to the
+       * last one evaluated (te) than that one's |value| has its sign and is not evaluated (the
+       * brackets and bisections are those of evaluating every sample) */
       int ns = (int)ceil(L / step);
       double ce = c + GR_FACE_EPS;
-      double t0 = 0, v0 = fline_value(&f, 0) + ce, start = v0 <= 0 ? 0 : NAN;
+      double t0 = 0, v0 = fline_value(&f, 0) + ce, start = v0 <= 0 ? 0 : NAN, te = 0;
       for (int q = 1; q <= ns && rc == GR_OK; q++) {
-        double t1 = q == ns ? L : q * step, v1 = fline_value(&f, t1) + ce;
+        double t1 = q == ns ? L : q * step;
+        if (t1 - te < fabs(v0) - FACE_SKIP) {
+          t0 = t1;
+          continue;
+        }
+        double v1 = fline_value(&f, t1) + ce;
+        te = t1;
         if ((v0 <= 0) != (v1 <= 0)) {
           double lo = t0, hi = t1, vlo = v0;
           for (int it = 0; it < 40 && hi - lo > 1e-7; it++) {
