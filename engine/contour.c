@@ -433,13 +433,15 @@ static int core_edge_within(const core_edges *c, size_t g, const double *p, doub
   return gr_seg_dist(p, c->r->xy + 2 * g, c->r->xy + 2 * c->nxt[g]) <= r;
 }
 
-/* Whether the segment pq lies within r of the core edge near the hint that
- * holds both its ends (the distance to a segment is convex along a line);
- * 0 says nothing about the other edges. */
-static int core_covers(core_edges *c, const double *p, const double *q, double r) {
-  for (size_t k = 0; k < sizeof CORE_TRY / sizeof *CORE_TRY && c->r->npts; k++) {
-    size_t g = (c->hint + c->r->npts + (size_t)(ptrdiff_t)CORE_TRY[k]) % c->r->npts;
-    if (core_edge_within(c, g, p, r) && core_edge_within(c, g, q, r)) return c->hint = g, 1;
+/* Whether one of the core edges near the hint (CORE_TRY) is within r of p
+ * and, unless q is NULL, of q too (then of the whole segment pq: the
+ * distance to a segment is convex along a line); the hint becomes it. 0
+ * says nothing about the other edges. */
+static int core_near_hint(core_edges *c, const double *p, const double *q, double r) {
+  size_t n = c->r->npts;
+  for (size_t k = 0; k < sizeof CORE_TRY / sizeof *CORE_TRY && n; k++) {
+    size_t g = (c->hint + n + (size_t)(ptrdiff_t)CORE_TRY[k]) % n;
+    if (core_edge_within(c, g, p, r) && (!q || core_edge_within(c, g, q, r))) return c->hint = g, 1;
   }
   return 0;
 }
@@ -447,10 +449,8 @@ static int core_covers(core_edges *c, const double *p, const double *q, double r
 /* Whether p is within r of some core edge: 1, 0, or -1 (out of memory). */
 static int core_within(core_edges *c, const double *p, double r, gr_err *e) {
   size_t n = c->r->npts;
-  for (size_t k = 0; k < sizeof CORE_TRY / sizeof *CORE_TRY && n; k++) {
-    size_t g = (c->hint + n + (size_t)(ptrdiff_t)CORE_TRY[k]) % n;
-    if (core_edge_within(c, g, p, r)) return c->hint = g, 1;
-  }
+  if (n == 0) return 0;
+  if (core_near_hint(c, p, NULL, r)) return 1;
   if (c->scans < CORE_SCANS) {
     c->scans++;
     const double *P = c->r->xy;
@@ -490,13 +490,12 @@ static int all_covered(const gr_rings *sec, const gr_rings *core, double b, doub
     size_t n = gr_ring_len(sec, i);
     for (size_t a = 0; a < n && ok >= 0; a++) {
       const double *q = p + 2 * ((a + 1) % n);
-      double len = gr_len2d(q[0] - p[2 * a], q[1] - p[2 * a + 1]);
-      int m = (int)ceil(len / tol);
-      if (core_covers(&c, p + 2 * a, q, r)) continue;
+      if (core_near_hint(&c, p + 2 * a, q, r)) continue;
+      int m = (int)ceil(gr_len2d(q[0] - p[2 * a], q[1] - p[2 * a + 1]) / tol);
       for (int k = 0; k < m; k++) {
         double t = (double)k / m, x[2] = {p[2 * a] + t * (q[0] - p[2 * a]), p[2 * a + 1] + t * (q[1] - p[2 * a + 1])};
         if (!in_box(box, x[0], x[1])) continue;
-        int w = core->npts ? core_within(&c, x, r, e) : 0;
+        int w = core_within(&c, x, r, e);
         if (w < 0) { ok = -1; break; }
         if (w) continue;
         ok = 0; /* an uncovered boundary sample: where the slivers are */

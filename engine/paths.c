@@ -180,13 +180,16 @@ int gr_rings_copy(gr_rings *dst, const gr_rings *src) {
   return rc;
 }
 
-/* Distance from p to segment ab. */
-double gr_seg_dist(const double *p, const double *a, const double *b) {
+/* Squared distance from p to segment ab (gr_seg_dist is its root). */
+static inline double seg_dist2(const double *p, const double *a, const double *b) {
   double ex = b[0] - a[0], ey = b[1] - a[1], L2 = ex * ex + ey * ey;
   double t = L2 > 0 ? ((p[0] - a[0]) * ex + (p[1] - a[1]) * ey) / L2 : 0;
   t = t < 0 ? 0 : t > 1 ? 1 : t;
-  return gr_len2d(a[0] + t * ex - p[0], a[1] + t * ey - p[1]);
+  double dx = a[0] + t * ex - p[0], dy = a[1] + t * ey - p[1];
+  return dx * dx + dy * dy;
 }
+
+double gr_seg_dist(const double *p, const double *a, const double *b) { return sqrt(seg_dist2(p, a, b)); }
 
 int gr_rings_simplify(gr_rings *r, double tol) {
   size_t cap = 0, *stack = NULL;
@@ -219,12 +222,8 @@ int gr_rings_simplify(gr_rings *r, double tol) {
          * sqrt(fl(x * x)) = x, so a point whose square is at most dw2 (the
          * worst's, or tol's) is no farther, and only the others need the
          * root; the points kept are those of the plain comparison */
-        double ex = pb[0] - pa[0], ey = pb[1] - pa[1], L2 = ex * ex + ey * ey;
         for (size_t k = a + 1; k < b; k++) {
-          const double *q = p + 2 * k;
-          double t = L2 > 0 ? ((q[0] - pa[0]) * ex + (q[1] - pa[1]) * ey) / L2 : 0;
-          t = t < 0 ? 0 : t > 1 ? 1 : t;
-          double dx = pa[0] + t * ex - q[0], dy = pa[1] + t * ey - q[1], d2 = dx * dx + dy * dy;
+          double d2 = seg_dist2(p + 2 * k, pa, pb);
           if (!(d2 > dw2)) continue;
           double d = sqrt(d2);
           if (d > dw) { dw = d; dw2 = d2; worst = k; }
