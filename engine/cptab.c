@@ -459,8 +459,10 @@ static int node_values(const gr_cptab *t, int q, const gr_field *f, double band,
    * |g| too; checking |g| < 2 herr + the spread of T as well cost 40 % more
    * template time on eq. (8) sheets and changed no layer of the iwp sheet's
    * measurement, doc/quality.md: not done.) */
+  double lim = 2 * herr;
   for (size_t n = 0; n < nn && !rc; n++) {
-    if (!(fabs(v[n]) < 2 * herr) || isnan(Q[3 * n]) || fabs(sd[n]) > band) continue;
+    if (!(fabs(v[n]) < lim)) continue; /* most nodes: one test */
+    if (isnan(Q[3 * n]) || fabs(sd[n]) > band) continue;
     double qk[3], sdk, off[3];
     size_t k;
     node_shift(t, nx, sh, n, &k, off);

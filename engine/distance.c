@@ -279,36 +279,68 @@ static int solve4(double A[4][4], double b[4]) {
   return 1;
 }
 
-/* Closest point of phi = 0 to p from a nearby start q: Newton on the
- * Lagrange conditions x - p + lambda grad phi(x) = 0, phi(x) = 0 (Hessian of
- * phi by differences of gradients). Converges quadratically from a start
- * near the answer (a neighbour's closest point); done when the foot is
- * within tol L; returns 0 (q unchanged) when it does not converge, so the
- * caller can fall back. */
-static int exact_newton_tol(const offset *f, const double p[3], double q[3], double tol) {
-  double x[3] = {q[0], q[1], q[2]}, lam = 0, prev = INFINITY;
+/* The bordered system [M g; g^T 0] [x; l] = b (M symmetric 3 x 3, b four
+ * long, solved in place) through M's adjugate A: l = (g.Ab - b3 det) / g.Ag,
+ * x = A (b - g l) / det. Two divisions instead of solve4's elimination; 0
+ * when M or the system is near singular (the caller takes solve4). */
+static int solve_bordered(const double M[3][3], const double g[3], double b[4]) {
+  double A[3][3];
+  A[0][0] = M[1][1] * M[2][2] - M[1][2] * M[1][2];
+  A[0][1] = A[1][0] = M[0][2] * M[1][2] - M[0][1] * M[2][2];
+  A[0][2] = A[2][0] = M[0][1] * M[1][2] - M[0][2] * M[1][1];
+  A[1][1] = M[0][0] * M[2][2] - M[0][2] * M[0][2];
+  A[1][2] = A[2][1] = M[0][1] * M[0][2] - M[0][0] * M[1][2];
+  A[2][2] = M[0][0] * M[1][1] - M[0][1] * M[0][1];
+  double det = M[0][0] * A[0][0] + M[0][1] * A[0][1] + M[0][2] * A[0][2], u[3], w[3];
+  for (int r = 0; r < 3; r++) {
+    u[r] = A[r][0] * b[0] + A[r][1] * b[1] + A[r][2] * b[2];
+    w[r] = A[r][0] * g[0] + A[r][1] * g[1] + A[r][2] * g[2];
+  }
+  double gw = gr_dot3(g, w);
+  /* M's eigenvalues are 1 - d kappa along the surface: det below 1e-3
+   * only near a centre of curvature, where elimination is the safer way */
+  if (!(fabs(det) > 1e-3) || !(fabs(gw) > 1e-9 * gr_dot3(g, g) * fabs(det))) return 0;
+  double l = (gr_dot3(g, u) - b[3] * det) / gw;
+  for (int r = 0; r < 3; r++) b[r] = (u[r] - w[r] * l) / det;
+  b[3] = l;
+  return 1;
+}
+
+/* Closest point of phi = 0 to p from a nearby start, the point *at (its
+ * value v and gradient g0 there, made by gr_field_grad_at or followed by
+ * gr_field_move_grad): Newton on the Lagrange conditions
+ * x - p + lambda grad phi(x) = 0, phi(x) = 0 (Hessian of phi by differences
+ * of gradients, from at's sines and cosines). Converges quadratically from a
+ * start near the answer (a neighbour's closest point); done when the foot
+ * is within tol L; the answer into q (1), or 0 (q unchanged) when it does
+ * not converge, so the caller can fall back. */
+static int newton_from(const offset *f, const double p[3], gr_field_at *at, double v, const double g0[3], double tol,
+                       double q[3]) {
+  double x[3] = {at->p[0], at->p[1], at->p[2]}, x0[3] = {at->p[0], at->p[1], at->p[2]}, lam = 0, prev = INFINITY;
+  double gs[3][3], dp[3] = {0, 0, 0}, g[3] = {g0[0], g0[1], g0[2]};
   gr_err e;
-  double gs[3][3], dp[3] = {0, 0, 0};
-  gr_field_at at;
+  /* the Hessian once: the start is near, so it barely changes; the steps
+   * after it move the start's sines and cosines */
+  if (gr_field_hess_fd_moved(f->phi, at, &f->hstep, g, gs, &e)) return 0;
   for (int it = 0; it < 20; it++) {
-    double v, g[3];
-    /* the Hessian once: the start is near, so it barely changes; the
-     * steps after it move the start's sines and cosines */
-    if (it == 0 ? gr_field_hess_fd_step(f->phi, x, &f->hstep, &v, g, gs, &at, &e) : gr_field_move_grad(f->phi, &at, dp, &v, g, &e))
-      return 0;
+    if (it > 0 && gr_field_move_grad(f->phi, at, dp, &v, g, &e)) return 0;
     double g2 = gr_dot3(g, g);
     if (!(g2 > 1e-300)) return 0;
     if (it == 0) lam = ((p[0] - x[0]) * g[0] + (p[1] - x[1]) * g[1] + (p[2] - x[2]) * g[2]) / g2;
-    double A[4][4], b[4];
+    double A[4][4], b[4], M[3][3];
     for (int r = 0; r < 3; r++) {
-      for (int c = 0; c < 3; c++) A[r][c] = (r == c) + lam * 0.5 * (gs[c][r] + gs[r][c]);
+      for (int c = 0; c < 3; c++) A[r][c] = M[r][c] = (r == c) + lam * 0.5 * (gs[c][r] + gs[r][c]);
       A[r][3] = g[r];
       A[3][r] = g[r];
       b[r] = -(x[r] - p[r] + lam * g[r]);
     }
     A[3][3] = 0;
     b[3] = -v;
-    if (!solve4(A, b)) return 0;
+    double b4[4] = {b[0], b[1], b[2], b[3]};
+    if (!solve_bordered(M, g, b)) {
+      memcpy(b, b4, sizeof b);
+      if (!solve4(A, b)) return 0;
+    }
     for (int a = 0; a < 3; a++) x[a] += dp[a] = b[a];
     lam += b[3];
     double dx = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
@@ -321,13 +353,21 @@ static int exact_newton_tol(const offset *f, const double p[3], double q[3], dou
     double rho = dx / prev;
     prev = dx;
     if (dx < 10 * tol * f->L || (it > 0 && rho < 0.1 && rho * dx < tol * f->L * (1 - rho))) {
-      double dq = sqrt((x[0] - q[0]) * (x[0] - q[0]) + (x[1] - q[1]) * (x[1] - q[1]) + (x[2] - q[2]) * (x[2] - q[2]));
-      if (!(dq < 0.25 * f->L)) return 0;
+      if (!(gr_dist3(x, x0) < 0.25 * f->L)) return 0;
       memcpy(q, x, sizeof x);
       return 1;
     }
   }
   return 0;
+}
+
+/* newton_from the point q. */
+static int exact_newton_tol(const offset *f, const double p[3], double q[3], double tol) {
+  gr_field_at at;
+  double v, g[3];
+  gr_err e;
+  if (gr_field_grad_at(f->phi, q, &v, g, &at, &e)) return 0;
+  return newton_from(f, p, &at, v, g, tol, q);
 }
 
 /* exact_newton_tol to 1e-7 L. */
@@ -639,7 +679,15 @@ int gr_offset_uses_local_reach(const gr_field *f_) {
 void gr_offset_implied_thickness(const gr_field *f_, size_t n, const double *sd, const double *v, double band,
                                  double *T) {
   const offset *f = gr_field_callback_data(f_, offset_eval);
-  for (size_t i = 0; i < n; i++) T[i] = f && fabs(sd[i]) <= band ? offset_value(f, sd[i], 0, 0) - v[i] : NAN;
+  /* offset_value(f, sd, 0, 0): |sd| for a sheet, sd or -sd for a network
+   * (the side chosen once, so that the loop vectorises) */
+  double sg = f && f->side > 0 ? -1 : 1;
+  if (!f)
+    for (size_t i = 0; i < n; i++) T[i] = NAN;
+  else if (f->kind == GR_OFFSET_SHEET)
+    for (size_t i = 0; i < n; i++) T[i] = fabs(sd[i]) <= band ? fabs(sd[i]) - v[i] : NAN;
+  else
+    for (size_t i = 0; i < n; i++) T[i] = fabs(sd[i]) <= band ? sg * sd[i] - v[i] : NAN;
 }
 
 double gr_offset_herr(const gr_field *f_) {
@@ -764,8 +812,8 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
  * to the projections' own tolerance (a foot within 1e-6 L), then the reach at
  * the foot decides as for an accepted projection (a foot within it is the
  * closest point). sd keeps its side. */
-static int newton_finish(const offset *f, const double p[3], double q[3], double *sd) {
-  if (!exact_newton_tol(f, p, q, 1e-6)) return 0;
+static int newton_finish(const offset *f, const double p[3], gr_field_at *at, double v, const double g[3], double q[3], double *sd) {
+  if (!newton_from(f, p, at, v, g, 1e-6, q)) return 0;
   double d = gr_dist3(p, q);
   if (!(d < reach_for(f, q, d))) return 0;
   *sd = *sd < 0 ? -d : d;
@@ -803,7 +851,7 @@ static int model_foot(const offset *f, const double p[3], const double x[3], gr_
     prev = D;
     prev2 = D2;
   }
-  return newton_finish(f, p, q, sd);
+  return newton_finish(f, p, &at, v, g, q, sd);
 }
 
 int gr_offset_eval_model(const gr_field *f_, size_t n, const double *x, const double *y, const double *z,

@@ -65,42 +65,18 @@ const char *gr_tpms_names(void) {
          "lidinoid, split_p, octo";
 }
 
-/* phi from the sines and cosines of the cell-angle coordinates (X, Y, Z);
- * g (may be NULL) receives d phi / d(X, Y, Z). Double angles come from the
- * single ones, so callers that know the trig values (grids) skip libm. */
-static double tpms_trig(int s, double sx, double cx, double sy, double cy, double sz,
-                        double cz, double *g) {
+/* tpms_trig for the surfaces whose terms take double angles (iwp, frd,
+ * fischer_koch_s, lidinoid, split_p): those come from the single ones. */
+static double tpms_trig2(int s, double sx, double cx, double sy, double cy, double sz, double cz, double *g) {
   double s2x = 2 * sx * cx, s2y = 2 * sy * cy, s2z = 2 * sz * cz;
   double c2x = 2 * cx * cx - 1, c2y = 2 * cy * cy - 1, c2z = 2 * cz * cz - 1;
   double phi = 0, gx = 0, gy = 0, gz = 0;
   switch (s) {
-  case S_PRIMITIVE:
-    phi = cx + cy + cz;
-    gx = -sx; gy = -sy; gz = -sz;
-    break;
-  case S_GYROID:
-    phi = cx * sy + cy * sz + cz * sx;
-    gx = -sx * sy + cz * cx;
-    gy = cx * cy - sy * sz;
-    gz = cy * cz - sz * sx;
-    break;
-  case S_DIAMOND:
-    phi = sx * sy * sz + sx * cy * cz + cx * sy * cz + cx * cy * sz;
-    gx = cx * sy * sz + cx * cy * cz - sx * sy * cz - sx * cy * sz;
-    gy = sx * cy * sz - sx * sy * cz + cx * cy * cz - cx * sy * sz;
-    gz = sx * sy * cz - sx * cy * sz - cx * sy * sz + cx * cy * cz;
-    break;
   case S_IWP:
     phi = 2 * (cx * cy + cy * cz + cz * cx) - (c2x + c2y + c2z);
     gx = -2 * sx * (cy + cz) + 2 * s2x;
     gy = -2 * sy * (cx + cz) + 2 * s2y;
     gz = -2 * sz * (cx + cy) + 2 * s2z;
-    break;
-  case S_NEOVIUS:
-    phi = 3 * (cx + cy + cz) + 4 * cx * cy * cz;
-    gx = -3 * sx - 4 * sx * cy * cz;
-    gy = -3 * sy - 4 * cx * sy * cz;
-    gz = -3 * sz - 4 * cx * cy * sz;
     break;
   case S_FRD:
     phi = 4 * cx * cy * cz - (c2x * c2y + c2y * c2z + c2z * c2x);
@@ -131,12 +107,49 @@ static double tpms_trig(int s, double sx, double cx, double sy, double cy, doubl
     gz = 1.1 * (s2x * cz * cy - s2y * sx * sz + 2 * c2z * sy * cx) +
          0.4 * s2z * (c2x + c2y) + 0.8 * s2z;
     break;
+  }
+  if (g) { g[0] = gx; g[1] = gy; g[2] = gz; }
+  return phi;
+}
+
+/* phi from the sines and cosines of the cell-angle coordinates (X, Y, Z);
+ * g (may be NULL) receives d phi / d(X, Y, Z). Double angles come from the
+ * single ones, so callers that know the trig values (grids) skip libm; the
+ * surfaces without them do not compute them (tpms_trig2 does). */
+static double tpms_trig(int s, double sx, double cx, double sy, double cy, double sz,
+                        double cz, double *g) {
+  double phi = 0, gx = 0, gy = 0, gz = 0;
+  switch (s) {
+  case S_PRIMITIVE:
+    phi = cx + cy + cz;
+    gx = -sx; gy = -sy; gz = -sz;
+    break;
+  case S_GYROID:
+    phi = cx * sy + cy * sz + cz * sx;
+    gx = -sx * sy + cz * cx;
+    gy = cx * cy - sy * sz;
+    gz = cy * cz - sz * sx;
+    break;
+  case S_DIAMOND:
+    phi = sx * sy * sz + sx * cy * cz + cx * sy * cz + cx * cy * sz;
+    gx = cx * sy * sz + cx * cy * cz - sx * sy * cz - sx * cy * sz;
+    gy = sx * cy * sz - sx * sy * cz + cx * cy * cz - cx * sy * sz;
+    gz = sx * sy * cz - sx * cy * sz - cx * sy * sz + cx * cy * cz;
+    break;
+  case S_NEOVIUS:
+    phi = 3 * (cx + cy + cz) + 4 * cx * cy * cz;
+    gx = -3 * sx - 4 * sx * cy * cz;
+    gy = -3 * sy - 4 * cx * sy * cz;
+    gz = -3 * sz - 4 * cx * cy * sz;
+    break;
   case S_OCTO:
     phi = 0.6 * (cx * cy + cy * cz + cz * cx) - 0.4 * (cx + cy + cz) + 0.25;
     gx = -0.6 * sx * (cy + cz) + 0.4 * sx;
     gy = -0.6 * sy * (cx + cz) + 0.4 * sy;
     gz = -0.6 * sz * (cx + cy) + 0.4 * sz;
     break;
+  default:
+    return tpms_trig2(s, sx, cx, sy, cy, sz, cz, g);
   }
   if (g) { g[0] = gx; g[1] = gy; g[2] = gz; }
   return phi;
@@ -625,8 +638,8 @@ int gr_field_eval_grad(const gr_field *f, size_t n, const double *x, const doubl
 }
 
 /* sin and cos of a small angle d, a Newton step's or a difference step's
- * phase (|d| < 0.1: Taylor terms to d^11 and d^12, the rest below 1e-21;
- * else libm's). The coefficients are constants (products, not the ten
+ * phase (|d| < 0.1: Taylor terms to d^11 and d^12, the rest below 1e-21,
+ * to d^5 and d^6 below 2e-3; else libm's). The coefficients are constants (products, not the ten
  * divisions of the nested form: this runs millions of times a job). */
 static void small_sincos(double d, double *s, double *c) {
   if (!(fabs(d) < 0.1)) { *s = sin(d); *c = cos(d); return; }
@@ -634,6 +647,11 @@ static void small_sincos(double d, double *s, double *c) {
   static const double C2 = -1.0 / 2, C4 = 1.0 / 24, C6 = -1.0 / 720, C8 = 1.0 / 40320, C10 = -1.0 / 3628800,
                       C12 = 1.0 / 479001600;
   double d2 = d * d;
+  if (d2 < 4e-6) { /* |d| < 2e-3 (most Newton steps): the terms from d^7 on are below 3e-23 */
+    *s = d + d * d2 * (S3 + d2 * S5);
+    *c = 1 + d2 * (C2 + d2 * (C4 + d2 * C6));
+    return;
+  }
   *s = d + d * d2 * (S3 + d2 * (S5 + d2 * (S7 + d2 * (S9 + d2 * S11))));
   *c = 1 + d2 * (C2 + d2 * (C4 + d2 * (C6 + d2 * (C8 + d2 * (C10 + d2 * C12)))));
 }
@@ -741,12 +759,20 @@ int gr_field_hess_fd_at(const gr_field *f, const double p[3], double h, double *
 
 int gr_field_hess_fd_step(const gr_field *f, const double p[3], const gr_field_step *st, double *v, double g[3],
                           double hs[3][3], gr_field_at *at, gr_err *e) {
+  if (!f) return gr_fail(e, GR_EARG, "field is missing (NULL)");
+  if (!(st->h > 0) || !isfinite(st->h)) return gr_fail(e, GR_EARG, "Hessian step must be > 0, got %g", st->h);
+  int rc = gr_field_grad_at(f, p, v, g, at, e);
+  return rc ? rc : gr_field_hess_fd_moved(f, at, st, g, hs, e);
+}
+
+int gr_field_hess_fd_moved(const gr_field *f, const gr_field_at *at, const gr_field_step *st, const double g[3],
+                           double hs[3][3], gr_err *e) {
   double h = st->h;
+  const double *p = at->p;
   if (!f) return gr_fail(e, GR_EARG, "field is missing (NULL)");
   if (!(h > 0) || !isfinite(h)) return gr_fail(e, GR_EARG, "Hessian step must be > 0, got %g", h);
-  int rc = gr_field_grad_at(f, p, v, g, at, e);
-  if (rc) return rc;
-  if (f->kind != K_TPMS) {
+  int rc = GR_OK;
+  if (!at->trig) {
     for (int a = 0; a < 3 && rc == GR_OK; a++) {
       double y[3] = {p[0], p[1], p[2]};
       y[a] += h;

@@ -127,6 +127,12 @@ void gr_field_step_init(const gr_field *f, double h, gr_field_step *st);
 /* gr_field_hess_fd_at with the step st (gr_field_step_init): the same values. */
 int gr_field_hess_fd_step(const gr_field *f, const double p[3], const gr_field_step *st, double *v, double g[3],
                           double hs[3][3], gr_field_at *at, gr_err *e);
+/* The Hessian at at->p (a point followed by gr_field_grad_at and
+ * gr_field_move_grad), g the gradient there: the differences of
+ * gr_field_hess_fd_step from the point's own sines and cosines (a TPMS: no
+ * trigonometric call); other fields evaluate three gradients. */
+int gr_field_hess_fd_moved(const gr_field *f, const gr_field_at *at, const gr_field_step *st, const double g[3],
+                           double hs[3][3], gr_err *e);
 /* Move *at (filled by gr_field_grad_at or gr_field_hess_fd_at) by dp (mm) and give the value
  * and gradient there (as gr_field_eval_grad at at->p + dp, to rounding). */
 int gr_field_move_grad(const gr_field *f, gr_field_at *at, const double dp[3], double *v, double g[3], gr_err *e);
