@@ -531,6 +531,10 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
               d, skin, hy, dv, far, sd, gr_offset_herr(f)};
   gr_slice_opts sm = *so; /* chords judged by their neighbours where the section is smooth */
   sm.smooth = !cut && gr_offset_smooth_thickness(f) ? near_smooth : NULL;
+  /* where the section is smooth, crossings from the nodes' cubic
+   * (gr_ms_grid.exact): a node's value below FAR_CELLS - 1 cells is its own,
+   * not the bound beyond the band (value_band) */
+  sm.exact = sm.smooth ? (FAR_CELLS - 1) * fmax(hx, hy) : 0;
   if (!rc)
     rc = cut ? gr_slice_grid(v, so, cut_fn, NULL, &u, out, e) : gr_slice_grid(v, &sm, near_fn, near_eval, &u.n, out, e);
   free(far);

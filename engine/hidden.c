@@ -187,6 +187,7 @@ static int hidden_boundary(const gr_ms_grid *g, double lip, const double *box, g
 static int refine_grid(const gr_ms_grid *g, int r, gr_slice_fn fn, void *ud, gr_ms_grid *fine, double **v,
                        gr_err *e) {
   *fine = *g;
+  fine->exact = 0; /* the blended nodes are not fn's values */
   fine->nx = (g->nx - 1) * r + 1;
   fine->ny = (g->ny - 1) * r + 1;
   fine->hx = g->hx / r;

@@ -70,11 +70,16 @@ void gr_sha256_hex(const void *data, size_t n, char out[65]);
  * every in-plane offset refines its chords to 0.5 um (contours had cut the
  * offset's arcs around the section's corners by up to 3.3 um between their
  * exact vertices; trimmed voxels' and face steps' offsets were refined to
- * 0.2 um, 2026-11-29).
+ * 0.2 um, 2026-11-29), 17 since in-plane offsets are sampled first on a
+ * grid of two slice cells, 18 since offsets put in the sharp corners their
+ * chords cut, 19 since offsets come straight from the section's edges where
+ * simple (2026-11-29), 20 since thick sheets' Newton finish starts from the
+ * model's last foot and crossings whose grid line is smooth come from the
+ * nodes' cubic (contours move within the chord tolerance, 2026-11-29).
  * A template whose
  * signature begins otherwise was built under an older rule: its key is never
  * asked for again, `gradus kb list` marks it stale and prune removes it. */
-#define GR_TEMPLATE_GEOMETRY "{gradus_template: 19, grading: voxel-owned,"
+#define GR_TEMPLATE_GEOMETRY "{gradus_template: 20, grading: voxel-owned,"
 /* 1 when a signature is a Gradus template's of an older engine geometry
  * (it begins with "{gradus_template: " but not with GR_TEMPLATE_GEOMETRY). */
 int gr_kb_stale(const char *signature);

@@ -189,15 +189,17 @@ int gr_ms_emit_ring(gr_rings *out, double *xy, size_t n) {
  * (outside end) 2 each, fp, fq their values: the bracket for roots_batch. */
 typedef struct ms_cross {
   double *P, *Q, *fp, *fq;
+  int *e; /* per crossing: padded I, J of its first node and dir (3 each) */
   size_t n, cap;
 } ms_cross;
 
 static int ms_add_cross(const gr_ms_grid *g, int I, int J, int dir, ms_cross *c) {
   int I1 = I + (dir == 0), J1 = J + (dir == 1);
   if (c->n + 1 > c->cap) {
-    size_t a = c->cap, b = c->cap, d = c->cap, f = c->cap;
+    size_t a = c->cap, b = c->cap, d = c->cap, f = c->cap, h = c->cap;
     if (gr_grow(&c->P, &a, c->n + 1, 2 * sizeof(double)) || gr_grow(&c->Q, &b, c->n + 1, 2 * sizeof(double)) ||
-        gr_grow(&c->fp, &d, c->n + 1, sizeof(double)) || gr_grow(&c->fq, &f, c->n + 1, sizeof(double)))
+        gr_grow(&c->fp, &d, c->n + 1, sizeof(double)) || gr_grow(&c->fq, &f, c->n + 1, sizeof(double)) ||
+        gr_grow(&c->e, &h, c->n + 1, 3 * sizeof(int)))
       return GR_EMEM;
     c->cap = a;
   }
@@ -206,6 +208,7 @@ static int ms_add_cross(const gr_ms_grid *g, int I, int J, int dir, ms_cross *c)
   int inI = v0 < 0 ? I : I1, inJ = v0 < 0 ? J : J1;
   int ouI = v0 < 0 ? I1 : I, ouJ = v0 < 0 ? J1 : J;
   size_t k = c->n++;
+  c->e[3 * k] = I; c->e[3 * k + 1] = J; c->e[3 * k + 2] = dir;
   c->P[2 * k] = node_x(g, inI); c->P[2 * k + 1] = node_y(g, inJ);
   c->Q[2 * k] = node_x(g, ouI); c->Q[2 * k + 1] = node_y(g, ouJ);
   c->fp[k] = v0 < 0 ? v0 : v1;
@@ -216,9 +219,10 @@ static int ms_add_cross(const gr_ms_grid *g, int I, int J, int dir, ms_cross *c)
 static int ms_crossings(const gr_ms_grid *g, const unsigned char *in, int *cross, ms_cross *c) {
   int NX = g->nx + 2, NY = g->ny + 2;
   /* room for a few rings across the window first (fewer reallocations) */
-  size_t a = 0, b = 0, d = 0, f = 0, guess = 4 * ((size_t)NX + NY);
+  size_t a = 0, b = 0, d = 0, f = 0, h = 0, guess = 4 * ((size_t)NX + NY);
   if (gr_grow(&c->P, &a, guess, 2 * sizeof(double)) || gr_grow(&c->Q, &b, guess, 2 * sizeof(double)) ||
-      gr_grow(&c->fp, &d, guess, sizeof(double)) || gr_grow(&c->fq, &f, guess, sizeof(double)))
+      gr_grow(&c->fp, &d, guess, sizeof(double)) || gr_grow(&c->fq, &f, guess, sizeof(double)) ||
+      gr_grow(&c->e, &h, guess, 3 * sizeof(int)))
     return GR_EMEM;
   c->cap = a;
   for (int J = 0; J < NY; J++) {
@@ -311,6 +315,93 @@ static const signed char MS_LINK[2][16][4] = {
  * fn, saddles decided by fn at the cell centre, segments oriented with the
  * inside on the left and chained by edge id into closed rings (appended to
  * out, not nested). */
+/* A crossing from the nodes along its grid line (g->exact > 0): on the
+ * edge from node a (unpadded (i, j)) to its neighbour along dir (0: x,
+ * 1: y), the root t (0..1 from a) of the cubic through nodes a-1 .. a+2.
+ * Its error is f4 / 24 (t+1) t (t-1) (t-2) h^4 (f4: the fourth derivative
+ * along the line), at most 0.5625 / 24 of h^4 f4, which the fourth
+ * differences of the six nodes a-2 .. a+3 estimate (the larger of the
+ * two); taken as a root error over the cubic's slope, CUBIC_SAFETY to
+ * spare. 1 when that is within tol (mm); 0 when not, when a node is not
+ * fn's exact value (|v| >= g->exact: a bound) or the line has fewer than
+ * three nodes on either side. A kink between the nodes (the medial
+ * surface, a voxel face's clamp) or a node whose value came from another
+ * patch of H shows in the differences, and the crossing is refined on fn. */
+#define CUBIC_SAFETY 4.0
+static int cubic_crossing(const gr_ms_grid *g, int i, int j, int dir, double tol, double *t) {
+  int n = dir ? g->ny : g->nx, a = dir ? j : i;
+  if (a < 2 || a + 3 >= n || i < 0 || j < 0 || i >= g->nx || j >= g->ny) return 0;
+  size_t step = dir ? (size_t)g->nx : 1;
+  const double *v = g->v + (size_t)i + (size_t)g->nx * j - 2 * step;
+  double f[6];
+  for (int m = 0; m < 6; m++)
+    if (!(fabs(f[m] = v[m * step]) < g->exact)) return 0;
+  if (f[2] == 0 || f[3] == 0 || (f[2] < 0) == (f[3] < 0)) return 0;
+  double d4a = f[4] - 4 * f[3] + 6 * f[2] - 4 * f[1] + f[0], d4b = f[5] - 4 * f[4] + 6 * f[3] - 4 * f[2] + f[1];
+  double h = dir ? g->hy : g->hx, d4 = gr_hi(fabs(d4a), fabs(d4b)) * CUBIC_SAFETY * (0.5625 / 24) * h;
+  /* the estimate with twice the chord's slope first: most rejections
+   * without the solve */
+  if (!(d4 < 2 * tol * fabs(f[3] - f[2]))) return 0;
+  /* Newton's form on the nodes -1, 0, 1, 2:
+   * p(x) = f1 + (x + 1) (d1 + x (d2 / 2 + (x - 1) d3 / 6)) */
+  double d1 = f[2] - f[1], d2 = f[3] - 2 * f[2] + f[1], d3 = f[4] - 3 * f[3] + 3 * f[2] - f[1];
+  double lo = 0, hi = 1, x = f[2] / (f[2] - f[3]), dp = d1;
+  for (int it = 0; it < 60; it++) { /* Newton kept in the bracket */
+    double pv = f[1] + (x + 1) * (d1 + x * (d2 / 2 + (x - 1) * d3 / 6));
+    if (pv == 0) break;
+    dp = d1 + d2 / 2 * (2 * x + 1) + d3 / 6 * (3 * x * x - 1);
+    if ((pv < 0) == (f[2] < 0)) lo = x; else hi = x;
+    double xn = x - pv / dp;
+    if (!(xn >= lo && xn <= hi)) xn = 0.5 * (lo + hi);
+    double dx = fabs(xn - x);
+    x = xn;
+    if (dx < 1e-13) break;
+  }
+  dp = d1 + d2 / 2 * (2 * x + 1) + d3 / 6 * (3 * x * x - 1);
+  if (!(d4 < tol * fabs(dp)) || !(x >= 0 && x <= 1)) return 0;
+  *t = x;
+  return 1;
+}
+
+/* The crossings' points pt (2 each): from the nodes' cubic where
+ * cubic_crossing takes them, the others refined on fn (roots_batch). */
+static int refine_crossings(const gr_ms_grid *g, gr_slice_fn fn, gr_slice_grad_fn gfn, void *ud, int refine,
+                            double tol, const ms_cross *cr, double *pt, gr_err *e) {
+  size_t n = cr->n;
+  if (!(g->exact > 0) || !refine)
+    return roots_batch(fn, gfn, ud, n, cr->P, cr->Q, cr->fp, cr->fq, refine, tol, pt, e);
+  double *w = malloc(8 * n * sizeof *w);
+  size_t *id = malloc(n * sizeof *id), m = 0;
+  if (!w || !id) {
+    free(w);
+    free(id);
+    return gr_fail(e, GR_EMEM, "out of memory refining %zu crossings", n);
+  }
+  double *P = w, *Q = w + 2 * n, *fp = w + 4 * n, *fq = w + 5 * n, *out = w + 6 * n;
+  for (size_t k = 0; k < n; k++) {
+    const int *c = cr->e + 3 * k;
+    double t;
+    if (cubic_crossing(g, c[0] - 1, c[1] - 1, c[2], tol, &t)) {
+      /* from the line's first node to the next (padded indices) */
+      double ax = node_x(g, c[0]), ay = node_y(g, c[1]);
+      double bx = node_x(g, c[0] + (c[2] == 0)), by = node_y(g, c[1] + (c[2] == 1));
+      pt[2 * k] = ax + t * (bx - ax);
+      pt[2 * k + 1] = ay + t * (by - ay);
+      continue;
+    }
+    memcpy(P + 2 * m, cr->P + 2 * k, 2 * sizeof *P);
+    memcpy(Q + 2 * m, cr->Q + 2 * k, 2 * sizeof *Q);
+    fp[m] = cr->fp[k];
+    fq[m] = cr->fq[k];
+    id[m++] = k;
+  }
+  int rc = roots_batch(fn, gfn, ud, m, P, Q, fp, fq, refine, tol, out, e);
+  for (size_t r = 0; r < m && !rc; r++) memcpy(pt + 2 * id[r], out + 2 * r, 2 * sizeof *pt);
+  free(w);
+  free(id);
+  return rc;
+}
+
 int gr_ms_contour(const gr_ms_grid *g, gr_slice_fn fn, gr_slice_grad_fn gfn, void *ud, int refine,
                       double tol, gr_rings *out, gr_err *e) {
   int NX = g->nx + 2, NY = g->ny + 2;
@@ -339,7 +430,7 @@ int gr_ms_contour(const gr_ms_grid *g, gr_slice_fn fn, gr_slice_grad_fn gfn, voi
   pt = malloc(2 * ncr * sizeof *pt);
   next = malloc(ncr * sizeof *next);
   if (!pt || !next) { rc = gr_fail(e, GR_EMEM, "out of memory: %zu crossings", ncr); goto done; }
-  rc = roots_batch(fn, gfn, ud, ncr, cr.P, cr.Q, cr.fp, cr.fq, refine, tol, pt, e);
+  rc = refine_crossings(g, fn, gfn, ud, refine, tol, &cr, pt, e);
   if (rc) goto done;
   /* 2. mixed cells; saddles: centre value on the true function */
   if (ms_mixed_cells(g, in, ncr, &cl)) { rc = gr_fail(e, GR_EMEM, "out of memory: %zu saddles", cl.ns); goto done; }
@@ -381,7 +472,7 @@ int gr_ms_contour(const gr_ms_grid *g, gr_slice_fn fn, gr_slice_grad_fn gfn, voi
     if (rc) { rc = gr_fail(e, GR_EMEM, "out of memory storing rings"); goto done; }
   }
 done:
-  free(cross); free(in); free(cr.P); free(cr.Q); free(cr.fp); free(cr.fq); free(pt); free(next);
+  free(cross); free(in); free(cr.P); free(cr.Q); free(cr.fp); free(cr.fq); free(cr.e); free(pt); free(next);
   free(cl.ij); free(cl.m); free(cl.cx); free(cl.cy); free(cv); free(ring);
   return rc;
 }

@@ -23,6 +23,11 @@ typedef struct gr_ms_grid {
   int nx, ny;
   double x0, y0, hx, hy;
   const double *v;
+  /* > 0: the values smaller than this in magnitude are fn's own (not
+   * bounds or blends), and fn is smooth enough along grid lines that a
+   * crossing whose six nodes along its line are all such may be taken from
+   * their cubic (gr_ms_contour); 0: every crossing is refined on fn */
+  double exact;
 } gr_ms_grid;
 
 /* The chord pass's window: with `on`, a segment along the window border

@@ -536,6 +536,7 @@ static int bbox_grid(const gr_rings *r, double cell, gr_ms_grid *g, gr_err *e) {
   g->nx = (int)ceil((hi[0] - lo[0]) / cell) + 1;
   g->ny = (int)ceil((hi[1] - lo[1]) / cell) + 1;
   g->x0 = lo[0]; g->y0 = lo[1];
+  g->exact = 0; /* crossings always refined on the distance */
   g->hx = (hi[0] - lo[0]) / (g->nx - 1);
   g->hy = (hi[1] - lo[1]) / (g->ny - 1);
   return GR_OK;
@@ -786,6 +787,6 @@ int gr_polydist_within(const gr_polydist *p, double x, double y, double r, size_
 
 int gr_polydist_grid(const gr_polydist *p, double x0, double y0, double h, int nx, int ny,
                      double rmax, double *v, gr_err *e) {
-  gr_ms_grid g = {nx, ny, x0, y0, h, h, NULL};
+  gr_ms_grid g = {nx, ny, x0, y0, h, h, NULL, 0};
   return pd_sample(&p->d, &g, v, rmax, e);
 }

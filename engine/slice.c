@@ -56,7 +56,7 @@ static gr_ms_grid window_grid(const gr_slice_opts *o) {
   int nx = (int)ceil((o->hi[0] - o->lo[0]) / o->cell - 1e-9) + 1;
   int ny = (int)ceil((o->hi[1] - o->lo[1]) / o->cell - 1e-9) + 1;
   gr_ms_grid g = {nx, ny, o->lo[0], o->lo[1], (o->hi[0] - o->lo[0]) / (nx - 1),
-               (o->hi[1] - o->lo[1]) / (ny - 1), NULL};
+               (o->hi[1] - o->lo[1]) / (ny - 1), NULL, 0};
   return g;
 }
 
@@ -101,6 +101,7 @@ int gr_slice_grid(const double *v, const gr_slice_opts *o, gr_slice_fn fn,
   if (rc) return rc;
   gr_ms_grid g = window_grid(o);
   g.v = v;
+  g.exact = o->exact;
   return slice_sampled(&g, o, fn, gfn, ud, out, e);
 }
 

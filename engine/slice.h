@@ -23,6 +23,10 @@ typedef struct gr_slice_opts {
    * the zero set is smooth between a chord's ends, a chord whose neighbours'
    * circles put it within chord_tol / 2 of the curve is not checked */
   gr_slice_smooth_fn smooth;
+  /* gr_slice_grid only (0: off): values smaller than this (mm) in magnitude
+   * are exact, so crossings may come from the nodes' cubic where its error
+   * estimate is within tol (gr_ms_grid.exact) */
+  double exact;
 } gr_slice_opts;
 gr_slice_opts gr_slice_defaults(void);
 

@@ -11,7 +11,7 @@
 #include "slice.h"
 #include <stdlib.h>
 
-typedef struct kinked { double a0, tilt, delta; } kinked;
+typedef struct kinked { double a0, tilt, delta, exact; } kinked;
 
 /* The root along row y: x = a0 + tilt y. */
 static double root_x(const kinked *k, double y) { return k->a0 + k->tilt * y; }
@@ -39,6 +39,7 @@ static int kinked_fn(void *ud, size_t n, const double *x, const double *y, doubl
  * distance of a ring point from the line x = a0 + tilt y. */
 static double worst_offset(kinked *k, int *npts, gr_err *e) {
   gr_slice_opts o = gr_slice_defaults();
+  o.exact = k->exact;
   o.lo[0] = 0;
   o.lo[1] = 0;
   o.hi[0] = 0.3;
@@ -84,7 +85,7 @@ TEST(newton_kink_before_root) {
    * tried falls past the kink when u is small. Accepting every step under
    * 0.1 um unchecked puts crossings 32 nm off here. */
   for (int d = 0; d <= 40; d++) {
-    kinked k = {0.100002, 5e-5, 1e-6 * pow(10, d / 20.0)};
+    kinked k = {0.100002, 5e-5, 1e-6 * pow(10, d / 20.0), 0};
     int n;
     double w = worst_offset(&k, &n, &e);
     CHECK(n > 100, "delta %g mm: %d ring points (%s)", k.delta, n, e.msg);
@@ -231,8 +232,67 @@ TEST(chords_judged_by_neighbours) {
   }
 }
 
+/* Crossings from the nodes' cubic (gr_slice_opts.exact): on a circle most
+ * crossings are taken from the grid's own values, with no evaluation (on a
+ * circle of radius 0.6 mm or more), and every crossing stays within the
+ * tolerance of the circle; where the field
+ * bends sharply between nodes (the kinked rows above, a kink from 1 nm to
+ * 20 um past the root, as the medial surface makes one) the fourth
+ * differences see it and the crossing is refined on the field; nodes beyond
+ * `exact` (bounds, here clamped values) are not used. */
+TEST(crossings_from_the_nodes_cubic) {
+  gr_err e;
+  double tol = gr_slice_defaults().tol;
+  for (int k = 0; k < 3; k++) {
+    circ c = {1.0013, 0.9871, 0.3 + 0.3 * k, 1, 0};
+    gr_slice_opts o;
+    double *v = circle_grid(&c, 0.025, &o);
+    gr_rings *r = gr_rings_new();
+    CHECK(v && r, "out of memory");
+    if (!v || !r) { free(v); gr_rings_free(r); return; }
+    int nx, ny;
+    double hx, hy;
+    gr_slice_grid_size(&o, &nx, &ny, &hx, &hy);
+    /* beyond 3 cells the nodes hold a bound only (clamped): not exact */
+    for (size_t q = 0; q < (size_t)nx * ny; q++)
+      if (fabs(v[q]) > 3 * hx) v[q] = v[q] < 0 ? -3.5 * hx : 3.5 * hx;
+    o.exact = 3 * hx;
+    double worst = INFINITY, per = INFINITY;
+    if (gr_slice_grid(v, &o, circ_fn, circ_grad, &c, r, &e) == GR_OK && r->npts) {
+      worst = 0;
+      for (size_t q = 0; q < r->npts; q++)
+        worst = fmax(worst, fabs(hypot(r->xy[2 * q] - c.cx, r->xy[2 * q + 1] - c.cy) - c.R));
+      per = (double)c.npts / (double)r->npts;
+    }
+    printf("  info: circle R %.1f mm, crossings from the cubic: %.2f points evaluated per crossing, farthest %.3g nm\n",
+           c.R, per, worst * 1e6);
+    CHECK(worst <= tol, "circle R %g: a crossing %.3g nm off (tolerance %.3g nm)", c.R, worst * 1e6, tol * 1e6);
+    /* R 0.3: f's fourth derivative along the grid lines is near the
+     * tolerance's limit (about 1 / R^3), most crossings are refined */
+    if (k > 0)
+      CHECK(per < 0.5, "circle R %g: %.2f points evaluated per crossing, expected most from the cubic", c.R, per);
+    gr_rings_free(r);
+    free(v);
+  }
+  double worst = 0;
+  int total = 0;
+  for (int d = 0; d <= 43; d++) {
+    kinked k = {0.100002, 5e-5, 1e-6 * pow(10, d / 10.0), 1};
+    int n;
+    double w = worst_offset(&k, &n, &e);
+    CHECK(n > 100, "delta %g mm: %d ring points (%s)", k.delta, n, e.msg);
+    worst = fmax(worst, w);
+    total += n;
+  }
+  printf("  info: %d crossings of kinked rows with the cubic on: farthest %.3g nm (tolerance %.3g nm)\n", total,
+         worst * 1e6, tol * 1e6);
+  CHECK(worst <= 1.01 * tol, "a crossing lies %.3g nm from the kinked zero set, more than the tolerance %.3g nm",
+        worst * 1e6, tol * 1e6);
+}
+
 int main(void) {
   RUN(newton_kink_before_root);
+  RUN(crossings_from_the_nodes_cubic);
   RUN(newton_one_evaluation_when_smooth);
   RUN(chords_judged_by_neighbours);
   DONE();
