@@ -502,7 +502,7 @@ static int chord_newton(gr_slice_grad_fn gfn, void *ud, double tol, double chord
   for (size_t k = 0; k < n; k++) {
     mx[k] = 0.5 * (ax[k] + bx[k]);
     my[k] = 0.5 * (ay[k] + by[k]);
-    hl[k] = hypot(bx[k] - mx[k], by[k] - my[k]); /* half the bracket */
+    hl[k] = gr_len2d(bx[k] - mx[k], by[k] - my[k]); /* half the bracket */
     act[k] = k;
   }
   for (int it = 0; it < 6 && na > 0; it++) {
@@ -562,7 +562,7 @@ static int on_border(const gr_ms_win *w, const double *a, const double *b) {
 
 void gr_ms_chord_corner(const double *p0, const double *a, const double *b, const double *p1, double c[2]) {
   double ux = a[0] - p0[0], uy = a[1] - p0[1], vx = p1[0] - b[0], vy = p1[1] - b[1];
-  double den = ux * vy - uy * vx, lu = hypot(ux, uy), lv = hypot(vx, vy);
+  double den = ux * vy - uy * vx, lu = gr_len2d(ux, uy), lv = gr_len2d(vx, vy);
   double t = (b[0] - a[0]) * vy - (b[1] - a[1]) * vx;
   if (!(fabs(den) > 1e-6 * lu * lv)) { c[0] = c[1] = NAN; return; }
   t /= den;
@@ -683,7 +683,7 @@ int gr_ms_seg_cross(const double *a, const double *b, const double *c, const dou
 static int corner_ok(const gr_rings *r, size_t i, size_t k, const double *R, double chord_tol) {
   size_t len = gr_ring_len(r, i);
   const double *p = gr_ring_xy(r, i), *A = p + 2 * k, *B = p + 2 * ((k + 1) % len);
-  if (hypot(R[0] - A[0], R[1] - A[1]) <= chord_tol || hypot(R[0] - B[0], R[1] - B[1]) <= chord_tol) return 0;
+  if (gr_len2d(R[0] - A[0], R[1] - A[1]) <= chord_tol || gr_len2d(R[0] - B[0], R[1] - B[1]) <= chord_tol) return 0;
   long span = (long)len / 2 < CORNER_NEAR ? (long)len / 2 : CORNER_NEAR;
   for (long j = -span; j <= span; j++) {
     if (j == 0) continue;
@@ -764,7 +764,7 @@ static int chord_passes(gr_rings *r, unsigned char **okp, const unsigned char *m
         if (ok[st + k]) continue;
         const double *a = p + 2 * k, *b = p + 2 * ((k + 1) % len);
         if (on_border(w, a, b)) continue;
-        double dx = b[0] - a[0], dy = b[1] - a[1], L = hypot(dx, dy);
+        double dx = b[0] - a[0], dy = b[1] - a[1], L = gr_len2d(dx, dy);
         if (L <= 2 * chord_tol) continue;
         /* a smooth stretch whose neighbours show the chord well within the
          * tolerance: not checked on the field (about half the chords of a
@@ -898,7 +898,7 @@ static int corner_marks(const gr_rings *r, unsigned char *ok, unsigned char *mus
       /* most vertices turn far less than 15 degrees: seen from the squares
        * (with room for their rounding), the exact test only near the limit */
       if (dot > 0 && dot * dot > (CORNER_TURN * CORNER_TURN + 1e-9) * (ux * ux + uy * uy) * (vx * vx + vy * vy)) continue;
-      double lu = hypot(ux, uy), lv = hypot(vx, vy);
+      double lu = gr_len2d(ux, uy), lv = gr_len2d(vx, vy);
       if (!(lu > 0 && lv > 0) || dot >= CORNER_TURN * lu * lv) continue;
       if (w->on && (T[0] == w->lo[0] || T[0] == w->hi[0] || T[1] == w->lo[1] || T[1] == w->hi[1])) continue;
       for (int side = 0; side < 2 && !rc; side++) {
