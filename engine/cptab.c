@@ -461,8 +461,8 @@ static int node_values(const gr_cptab *t, int q, const gr_field *f, double band,
    * measurement, doc/quality.md: not done.) */
   double lim = 2 * herr;
   for (size_t n = 0; n < nn && !rc; n++) {
-    if (!(fabs(v[n]) < lim)) continue; /* most nodes: one test */
-    if (isnan(Q[3 * n]) || fabs(sd[n]) > band) continue;
+    while (n < nn && !(fabs(v[n]) < lim)) n++; /* most nodes: one test */
+    if (n == nn || isnan(Q[3 * n]) || fabs(sd[n]) > band) continue;
     double qk[3], sdk, off[3];
     size_t k;
     node_shift(t, nx, sh, n, &k, off);

@@ -630,7 +630,8 @@ static int values_at(const offset *f, size_t n, const double *p, const double *q
                      double *out, gr_err *e) {
   enum { B = 256 };
   double qx[B], qy[B], qz[B], tt[B], ti[B], px[B], py[B], pz[B];
-  const double *pk[3] = {px, py, pz};
+  /* the points themselves, or (p NULL) the feet: no second copy */
+  const double *pk[3] = {p ? px : qx, p ? py : qy, p ? pz : qz};
   size_t idx[B];
   for (size_t s = 0; s < n; s += B) {
     size_t m = n - s < B ? n - s : B, k = 0;
@@ -641,8 +642,7 @@ static int values_at(const offset *f, size_t n, const double *p, const double *q
         continue;
       }
       qx[k] = qi[0]; qy[k] = qi[1]; qz[k] = qi[2];
-      const double *pi = p ? p + 3 * (s + i) : qi;
-      px[k] = pi[0]; py[k] = pi[1]; pz[k] = pi[2];
+      if (p) { px[k] = p[3 * (s + i)]; py[k] = p[3 * (s + i) + 1]; pz[k] = p[3 * (s + i) + 2]; }
       idx[k++] = i;
     }
     if (k == 0) continue;
