@@ -807,12 +807,14 @@ int gr_offset_eval_near(const gr_field *f_, size_t n, const double *x, const dou
 #define MODEL_ROUNDS 4
 
 /* The projections did not settle in MODEL_ROUNDS (d kappa near 1: thick
- * sheets, points near a centre of curvature): finish from the last foot q
- * by Newton's method with phi's Hessian (quadratic from a start this near),
- * to the projections' own tolerance (a foot within 1e-6 L), then the reach at
- * the foot decides as for an accepted projection (a foot within it is the
- * closest point). sd keeps its side. */
-static int newton_finish(const offset *f, const double p[3], gr_field_at *at, double v, const double g[3], double q[3], double *sd) {
+ * sheets, points near a centre of curvature): finish by Newton's method with
+ * phi's Hessian (quadratic from a start this near) from the last foot they
+ * evaluated (*at, its value v and gradient g: no new sines), to the
+ * projections' own tolerance (a foot within 1e-6 L), the answer into q; then
+ * the reach at the foot decides as for an accepted projection (a foot within
+ * it is the closest point). sd keeps its side. */
+static int newton_finish(const offset *f, const double p[3], gr_field_at *at, double v, const double g[3],
+                         double q[3], double *sd) {
   if (!newton_from(f, p, at, v, g, 1e-6, q)) return 0;
   double d = gr_dist3(p, q);
   if (!(d < reach_for(f, q, d))) return 0;

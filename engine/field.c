@@ -638,9 +638,10 @@ int gr_field_eval_grad(const gr_field *f, size_t n, const double *x, const doubl
 }
 
 /* sin and cos of a small angle d, a Newton step's or a difference step's
- * phase (|d| < 0.1: Taylor terms to d^11 and d^12, the rest below 1e-21,
- * to d^5 and d^6 below 2e-3; else libm's). The coefficients are constants (products, not the ten
- * divisions of the nested form: this runs millions of times a job). */
+ * phase (|d| < 0.1: Taylor terms to d^11 and d^12, the rest below 1e-21;
+ * below 2e-3 to d^5 and d^6; else libm's). The coefficients are constants
+ * (products, not the ten divisions of the nested form: this runs millions
+ * of times a job). */
 static void small_sincos(double d, double *s, double *c) {
   if (!(fabs(d) < 0.1)) { *s = sin(d); *c = cos(d); return; }
   static const double S3 = -1.0 / 6, S5 = 1.0 / 120, S7 = -1.0 / 5040, S9 = 1.0 / 362880, S11 = -1.0 / 39916800;
