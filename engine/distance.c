@@ -282,7 +282,8 @@ static int solve4(double A[4][4], double b[4]) {
 /* The bordered system [M g; g^T 0] [x; l] = b (M symmetric 3 x 3, b four
  * long, solved in place) through M's adjugate A: l = (g.Ab - b3 det) / g.Ag,
  * x = A (b - g l) / det. Two divisions instead of solve4's elimination; 0
- * when M or the system is near singular (the caller takes solve4). */
+ * (b untouched) when M or the system is near singular (solve_lagrange then
+ * takes solve4). */
 static int solve_bordered(const double M[3][3], const double g[3], double b[4]) {
   double A[3][3];
   A[0][0] = M[1][1] * M[2][2] - M[1][2] * M[1][2];
@@ -306,6 +307,19 @@ static int solve_bordered(const double M[3][3], const double g[3], double b[4]) 
   return 1;
 }
 
+/* The bordered system by solve_bordered, or where that declines by solve4
+ * (its 4 x 4 matrix made only then; b is left as it was on a decline). */
+static int solve_lagrange(const double M[3][3], const double g[3], double b[4]) {
+  if (solve_bordered(M, g, b)) return 1;
+  double A[4][4];
+  for (int r = 0; r < 3; r++) {
+    for (int c = 0; c < 3; c++) A[r][c] = M[r][c];
+    A[r][3] = A[3][r] = g[r];
+  }
+  A[3][3] = 0;
+  return solve4(A, b);
+}
+
 /* Closest point of phi = 0 to p from a nearby start, the point *at (its
  * value v and gradient g0 there, made by gr_field_grad_at or followed by
  * gr_field_move_grad): Newton on the Lagrange conditions
@@ -327,20 +341,13 @@ static int newton_from(const offset *f, const double p[3], gr_field_at *at, doub
     double g2 = gr_dot3(g, g);
     if (!(g2 > 1e-300)) return 0;
     if (it == 0) lam = ((p[0] - x[0]) * g[0] + (p[1] - x[1]) * g[1] + (p[2] - x[2]) * g[2]) / g2;
-    double A[4][4], b[4], M[3][3];
+    double b[4], M[3][3];
     for (int r = 0; r < 3; r++) {
-      for (int c = 0; c < 3; c++) A[r][c] = M[r][c] = (r == c) + lam * 0.5 * (gs[c][r] + gs[r][c]);
-      A[r][3] = g[r];
-      A[3][r] = g[r];
+      for (int c = 0; c < 3; c++) M[r][c] = (r == c) + lam * 0.5 * (gs[c][r] + gs[r][c]);
       b[r] = -(x[r] - p[r] + lam * g[r]);
     }
-    A[3][3] = 0;
     b[3] = -v;
-    double b4[4] = {b[0], b[1], b[2], b[3]};
-    if (!solve_bordered(M, g, b)) {
-      memcpy(b, b4, sizeof b);
-      if (!solve4(A, b)) return 0;
-    }
+    if (!solve_lagrange(M, g, b)) return 0;
     for (int a = 0; a < 3; a++) x[a] += dp[a] = b[a];
     lam += b[3];
     double dx = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);

@@ -760,9 +760,7 @@ int gr_field_hess_fd_at(const gr_field *f, const double p[3], double h, double *
 
 int gr_field_hess_fd_step(const gr_field *f, const double p[3], const gr_field_step *st, double *v, double g[3],
                           double hs[3][3], gr_field_at *at, gr_err *e) {
-  if (!f) return gr_fail(e, GR_EARG, "field is missing (NULL)");
-  if (!(st->h > 0) || !isfinite(st->h)) return gr_fail(e, GR_EARG, "Hessian step must be > 0, got %g", st->h);
-  int rc = gr_field_grad_at(f, p, v, g, at, e);
+  int rc = gr_field_grad_at(f, p, v, g, at, e); /* (the step is checked by gr_field_hess_fd_moved) */
   return rc ? rc : gr_field_hess_fd_moved(f, at, st, g, hs, e);
 }
 
