@@ -269,11 +269,23 @@ static int make_work(gr_build *a, const int *cs, int nc, gr_err *e) {
   return GR_OK;
 }
 
+/* Table t's layers filled to dmax (those filled to less before gain the
+ * nodes between). */
+static int fill_table(gr_build *a, gr_cptab *t, double dmax, gr_err *e) {
+  double was = t->dmax;
+  t->dmax = dmax;
+  a->tab = t;
+  int rc = gr_pool_for(t->nl, table_item, a, a->j->o.threads, NULL, NULL, "closest points", e);
+  a->tab = NULL;
+  if (rc) t->dmax = was; /* layers not grown: a later call tries again */
+  return rc;
+}
+
 /* The shared closest points of the group of class c (canonical field g):
  * over one period of the slice grid at the grid's first voxel, layers at the
- * group's z-phase, every node within L/2 (the largest T) of H. Depends on
- * the group's key only. */
-static gr_cptab *make_table(gr_build *a, int c, gr_field *g, gr_err *e) {
+ * group's z-phase, every node within dmax of H (group_dmax). Depends on the
+ * group's key and on dmax only. */
+static gr_cptab *make_table(gr_build *a, int c, gr_field *g, double dmax, gr_err *e) {
   gr_job *j = a->j;
   const gr_vclass *cl = &j->cls[c];
   double o[3];
@@ -282,18 +294,33 @@ static gr_cptab *make_table(gr_build *a, int c, gr_field *g, gr_err *e) {
   gr_grid_ijk(&j->grid, cl->rep, &i, &jj, &k);
   double phase = gr_grid_mid(&j->grid, gr_grid_row_first(&j->grid, k)) - o[2];
   double z0 = j->o.origin[2] + round(phase / 1e-9) * 1e-9 + cl->t->j0 * j->o.layer;
-  /* nodes of crossing edges lie within T + h of H; beyond, only signs matter */
-  double dmax = 0.6 * gr_cell_min(j->o.cell) + 2 * j->o.slice_cell;
   gr_cptab *t = gr_cptab_new(j->o.cell, j->o.slice_cell, gr_tmpl_window(&j->o), g, j->o.origin, z0, j->o.layer,
                              cl->t->nl, dmax, e);
-  if (!t) return NULL;
-  a->tab = t;
-  if (gr_pool_for(cl->t->nl, table_item, a, j->o.threads, NULL, NULL, "closest points", e)) {
-    a->tab = NULL;
+  if (t && fill_table(a, t, dmax, e)) {
     gr_cptab_free(t);
     return NULL;
   }
   return t;
+}
+
+/* The farthest a node of a cell can be from H (any T up to L/2). */
+static double full_dmax(const gr_job *j) { return 0.6 * gr_cell_min(j->o.cell) + 2 * j->o.slice_cell; }
+
+/* How far from H the table of the group cs[0..nc) (canonical field ref)
+ * finds closest points: as far as its members' sections read them
+ * (gr_cptab_reach: their thickness and a few grid cells; beyond, the nodes'
+ * values are bounds with the right sign), at most full_dmax. */
+static double group_dmax(const gr_job *j, const int *cs, int nc, const gr_field *ref) {
+  /* the members of later calls (rows of voxels, thickness graded along z)
+   * estimated from the signatures' largest thickness and a fifth more (the
+   * whole reach where a class is trimmed: its values are exact everywhere):
+   * T over H near a voxel exceeds T sampled inside it by its slope times
+   * the window's margin (growing the table later searches the mesh again
+   * from every node beyond its reach) */
+  double d = j->st.trimmed_classes ? INFINITY : gr_cptab_reach_est(ref, 1.2 * j->tsig, j->o.slice_cell);
+  for (int p = 0; p < nc; p++)
+    d = fmax(d, j->cls[cs[p]].field ? gr_cptab_reach(j->cls[cs[p]].field, j->o.slice_cell) : INFINITY);
+  return fmin(d, full_dmax(j));
 }
 
 /* The cache entry of group key `key`, or NULL. */
@@ -385,7 +412,13 @@ int gr_build_classes(gr_build *a, const gr_job_run_opts *r, const char *stage, g
       for (int p = q; p < n; p++)
         if (gid[p] == q) cs[nc++] = a->items[p];
     gr_cptab *t = a->ghit[q] ? a->ghit[q]->tab : NULL;
-    if (gid[q] >= 0 && !t && !(t = make_table(a, a->items[q], a->gfield[q], e))) { rc = e->code ? e->code : GR_EMEM; break; }
+    double dmax = gid[q] >= 0 ? group_dmax(j, cs, nc, a->gfield[q]) : 0;
+    /* a cached table grows where these members read farther from H: by
+     * half at least (each growth searches the mesh again from every node
+     * beyond the table's reach; thickness graded along z grows a little
+     * with every row of voxels) */
+    if (t && t->dmax < dmax && (rc = fill_table(a, t, fmin(fmax(dmax, 1.5 * t->dmax), full_dmax(j)), e))) break;
+    if (gid[q] >= 0 && !t && !(t = make_table(a, a->items[q], a->gfield[q], dmax, e))) { rc = e->code ? e->code : GR_EMEM; break; }
     if (gid[q] >= 0 && !a->ghit[q] && cache_put(a, keys[q], a->gfield[q], t)) a->ghit[q] = cache_find(a, keys[q]);
     a->tab = t;
     long nl = 0;

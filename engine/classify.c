@@ -128,6 +128,7 @@ static char *voxel_signature(gr_job *j, int v, gr_err *e) {
   const double *vars[6] = {x, y, z, u, vv, w};
   if (s->target ? gr_field_eval(s->target, N, x, y, z, t, e) : gr_expr_eval(j->texpr[j->vspec[v]], N, vars, t, e)) return NULL;
   if (j->iexpr[j->vspec[v]] && gr_expr_eval(j->iexpr[j->vspec[v]], N, vars, ti, e)) return NULL;
+  for (int q = 0; q < N; q++) j->tsig = fmax(j->tsig, fmax(t[q], j->iexpr[j->vspec[v]] ? ti[q] : 0));
   size_t cap = 2048 + N * 24 * 2;
   char *sig = malloc(cap);
   if (!sig) return gr_fail(e, GR_EMEM, "out of memory"), NULL;
@@ -184,6 +185,7 @@ int gr_classify_run(gr_job *j, int direct, gr_err *e) {
   j->cls = calloc(j->nvox + 1, sizeof *j->cls);
   if (!j->cls) return gr_fail(e, GR_EMEM, "out of memory");
   j->ncls = 0;
+  j->tsig = 0;
   /* hash of keys -> class */
   size_t nb = 1;
   while (nb < (size_t)j->nvox * 2) nb <<= 1;

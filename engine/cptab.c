@@ -13,6 +13,7 @@ void gr_cptab_free(gr_cptab *t) {
   free(t->st);
   free(t->sq);
   free(t->ssd);
+  free(t->ldmax);
   free(t);
 }
 
@@ -49,26 +50,68 @@ gr_cptab *gr_cptab_new(const double cell[3], double h, double margin, const gr_f
   t->st = calloc(2 * np, 1);
   t->sq = malloc(6 * np * sizeof *t->sq);
   t->ssd = malloc(2 * np * sizeof *t->ssd);
-  if (!t->q || !t->sd || !t->st || !t->sq || !t->ssd) {
+  t->ldmax = calloc(nl, sizeof *t->ldmax);
+  if (!t->q || !t->sd || !t->st || !t->sq || !t->ssd || !t->ldmax) {
     gr_cptab_free(t);
     return gr_fail(e, GR_EMEM, "out of memory"), NULL;
   }
   return t;
 }
 
-int gr_cptab_layer(gr_cptab *t, int q, gr_err *e) {
-  size_t n = (size_t)t->P[0] * t->P[1];
-  double *x = malloc(3 * n * sizeof *x);
-  if (!x) return gr_fail(e, GR_EMEM, "out of memory");
-  double *y = x + n, *z = x + 2 * n, zq = t->z0 + q * t->t;
-  for (int b = 0; b < t->P[1]; b++)
-    for (int a = 0; a < t->P[0]; a++) {
-      x[a + (size_t)t->P[0] * b] = t->lo[0] + a * t->h;
-      y[a + (size_t)t->P[0] * b] = t->lo[1] + b * t->h;
-      z[a + (size_t)t->P[0] * b] = zq;
-    }
-  int rc = gr_offset_closest(t->field, n, x, y, z, t->dmax, t->q + 3 * n * q, t->sd + n * q, e);
+/* Layer q's nodes filled before to a smaller reach (ldmax) whose closest
+ * points were beyond it and may lie within dmax now: their closest points
+ * found (the others' stay). */
+static int layer_grow(gr_cptab *t, int q, gr_err *e) {
+  size_t n = (size_t)t->P[0] * t->P[1], m = 0;
+  double *tq = t->q + 3 * n * q, *tsd = t->sd + n * q;
+  for (size_t k = 0; k < n; k++) m += isnan(tq[3 * k]) && fabs(tsd[k]) <= t->dmax;
+  if (!m) return GR_OK;
+  double *x = malloc(7 * m * sizeof *x);
+  size_t *id = malloc(m * sizeof *id);
+  if (!x || !id) {
+    free(x);
+    free(id);
+    return gr_fail(e, GR_EMEM, "out of memory");
+  }
+  double *y = x + m, *z = x + 2 * m, *qq = x + 3 * m, *sd = x + 6 * m;
+  m = 0;
+  for (size_t k = 0; k < n; k++) {
+    if (!(isnan(tq[3 * k]) && fabs(tsd[k]) <= t->dmax)) continue;
+    x[m] = t->lo[0] + (double)(k % t->P[0]) * t->h;
+    y[m] = t->lo[1] + (double)(k / t->P[0]) * t->h;
+    z[m] = t->z0 + q * t->t;
+    id[m++] = k;
+  }
+  int rc = gr_offset_closest(t->field, m, x, y, z, t->dmax, qq, sd, e);
+  for (size_t i = 0; i < m && !rc; i++) {
+    memcpy(tq + 3 * id[i], qq + 3 * i, 3 * sizeof *qq);
+    tsd[id[i]] = sd[i];
+  }
   free(x);
+  free(id);
+  return rc;
+}
+
+int gr_cptab_layer(gr_cptab *t, int q, gr_err *e) {
+  if (t->ldmax[q] >= t->dmax) return GR_OK;
+  int rc = GR_OK;
+  size_t n = (size_t)t->P[0] * t->P[1];
+  if (t->ldmax[q] > 0) {
+    rc = layer_grow(t, q, e);
+  } else {
+    double *x = malloc(3 * n * sizeof *x);
+    if (!x) return gr_fail(e, GR_EMEM, "out of memory");
+    double *y = x + n, *z = x + 2 * n, zq = t->z0 + q * t->t;
+    for (int b = 0; b < t->P[1]; b++)
+      for (int a = 0; a < t->P[0]; a++) {
+        x[a + (size_t)t->P[0] * b] = t->lo[0] + a * t->h;
+        y[a + (size_t)t->P[0] * b] = t->lo[1] + b * t->h;
+        z[a + (size_t)t->P[0] * b] = zq;
+      }
+    rc = gr_offset_closest_rows(t->field, n, (size_t)t->P[0], x, y, z, t->dmax, t->q + 3 * n * q, t->sd + n * q, e);
+    free(x);
+  }
+  if (!rc) t->ldmax[q] = t->dmax;
   return rc;
 }
 
@@ -446,6 +489,17 @@ static void node_shift(const gr_cptab *t, int nx, const double sh[3], size_t n, 
 static double value_band(const gr_field *f, int cut, double h) {
   double tmax = gr_offset_max_thickness(f);
   return !cut && tmax >= 0 ? tmax + FAR_CELLS * h + 2 * gr_offset_herr(f) : INFINITY;
+}
+
+double gr_cptab_reach(const gr_field *f, double h) {
+  const gr_field *g = f, *d = NULL;
+  double skin = 0;
+  int cut = gr_domain_trim_parts(f, &g, &d, &skin);
+  return value_band(g, cut, h) + 4 * h;
+}
+
+double gr_cptab_reach_est(const gr_field *ref, double tmax, double h) {
+  return tmax + FAR_CELLS * h + 2 * gr_offset_herr(ref) + 4 * h;
 }
 
 static int node_values(const gr_cptab *t, int q, const gr_field *f, double band, int nx, size_t nn,

@@ -25,6 +25,7 @@ typedef struct gr_cptab {
   double lo[2];          /* slice window corner of the reference voxel, mm */
   double oref[3];        /* reference voxel origin, mm */
   double dmax;           /* closest points are exact within this distance of H, mm */
+  double *ldmax;         /* per layer: the dmax it was filled to (0: not yet) */
   const gr_field *field; /* the reference class's field */
   double *q, *sd;        /* per template layer, Px*Py nodes: closest point, signed distance */
   /* the strict check of a node's closest point (gr_offset_strict: it does
@@ -42,11 +43,23 @@ typedef struct gr_cptab {
 int gr_cptab_period(double cell, double h);
 /* 1 when the slice grid is periodic with both in-plane lengths cell[0], cell[1]. */
 int gr_cptab_periodic(const double cell[3], double h);
+/* How far from H (mm) a member field f's section reads the table's closest
+ * points on a slice grid of spacing h: its exact band (the thickness plus
+ * a few grid cells, everywhere for a trimmed field) plus four cells for the
+ * chord search's points (cptab.c). A table whose dmax covers every
+ * member's serves them all. */
+double gr_cptab_reach(const gr_field *f, double h);
+/* The same estimated for a member not yet made, of thickness up to tmax
+ * (mm), from the table's own field ref. */
+double gr_cptab_reach_est(const gr_field *ref, double tmax, double h);
 /* An empty table (fill it with gr_cptab_layer for q = 0..nl-1); NULL + e on failure. */
 gr_cptab *gr_cptab_new(const double cell[3], double h, double margin, const gr_field *ref, const double oref[3], double z0,
                        double t_layer, int nl, double dmax, gr_err *e);
 void gr_cptab_free(gr_cptab *t);
-/* Closest points of table layer q (thread-safe for distinct q). */
+/* Closest points of table layer q (thread-safe for distinct q): all its
+ * nodes within dmax of H; a layer filled before to a smaller dmax (the
+ * caller raised t->dmax for members with thicker walls) gains the nodes
+ * between the two only. */
 int gr_cptab_layer(gr_cptab *t, int q, gr_err *e);
 /* Section of a member class (field f, voxel corner o) at height z (table layer q).
  * f may be a trimmed field (gr_domain_trim of a member's field, domain.h):

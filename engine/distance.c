@@ -577,8 +577,27 @@ double gr_offset_max_thickness(const gr_field *f) {
   return o ? o->tmax : -1;
 }
 
+/* The earlier point (the one before k, else the one a row before) whose
+ * closest point may start k's local search: it has one and lies within
+ * 0.1 L of k; -1 when none does. */
+static long closest_hint(const offset *f, size_t k, size_t row, const double *x, const double *y, const double *z,
+                         const double *q) {
+  size_t c[2] = {k - 1, k - row};
+  for (int a = 0; a < 2; a++) {
+    if ((a == 0 && k == 0) || (a == 1 && (row == 0 || k < row)) || isnan(q[3 * c[a]])) continue;
+    double dx = x[k] - x[c[a]], dy = y[k] - y[c[a]], dz = z[k] - z[c[a]];
+    if (dx * dx + dy * dy + dz * dz < 0.01 * f->L * f->L) return (long)c[a];
+  }
+  return -1;
+}
+
 int gr_offset_closest(const gr_field *f_, size_t n, const double *x, const double *y,
                       const double *z, double dmax, double *q, double *sd, gr_err *e) {
+  return gr_offset_closest_rows(f_, n, 0, x, y, z, dmax, q, sd, e);
+}
+
+int gr_offset_closest_rows(const gr_field *f_, size_t n, size_t row, const double *x, const double *y,
+                           const double *z, double dmax, double *q, double *sd, gr_err *e) {
   const offset *f = gr_field_callback_data(f_, offset_eval);
   if (!f) return gr_fail(e, GR_EARG, "closest points need an offset field");
   enum { B = 256 };
@@ -598,16 +617,13 @@ int gr_offset_closest(const gr_field *f_, size_t n, const double *x, const doubl
         continue;
       }
       /* from the previous point's closest point when it is near (points
-       * come in grid order), checked against the mesh: no part of H may be
-       * nearer than the answer less H's error bound herr (the answer may be
-       * up to 2 herr too long: gr_offset_values checks strictly where that
-       * matters) */
-      const double *pq = (s + i > 0) ? q + 3 * (s + i - 1) : NULL;
-      double pp[3] = {0, 0, 0};
-      if (pq) { pp[0] = x[s + i - 1]; pp[1] = y[s + i - 1]; pp[2] = z[s + i - 1]; }
-      if (f->mode == GR_DIST_EXACT && pq && !isnan(pq[0]) &&
-          (p[0] - pp[0]) * (p[0] - pp[0]) + (p[1] - pp[1]) * (p[1] - pp[1]) + (p[2] - pp[2]) * (p[2] - pp[2]) < 0.01 * f->L * f->L) {
-        double qq[3] = {pq[0], pq[1], pq[2]};
+       * come in grid order; after a point without one, the point a row
+       * before), checked against the mesh: no part of H may be nearer than
+       * the answer less H's error bound herr (the answer may be up to 2 herr
+       * too long: gr_offset_values checks strictly where that matters) */
+      long hk = f->mode == GR_DIST_EXACT ? closest_hint(f, s + i, row, x, y, z, q) : -1;
+      if (hk >= 0) {
+        double qq[3] = {q[3 * hk], q[3 * hk + 1], q[3 * hk + 2]};
         if (exact_newton(f, p, qq)) {
           double d = nearest_patch(f, p, qq, f->herr, 0, 0);
           if (d <= dmax) {

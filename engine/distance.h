@@ -80,6 +80,11 @@ double gr_offset_max_thickness(const gr_field *f);
  * the same surface: closest points are shared by fields differing only in T. */
 int gr_offset_closest(const gr_field *f, size_t n, const double *x, const double *y,
                       const double *z, double dmax, double *q, double *sd, gr_err *e);
+/* The same for points in rows of `row` points (a grid, row by row): a
+ * point whose predecessor has no closest point starts from the one a row
+ * before (0: no rows). */
+int gr_offset_closest_rows(const gr_field *f, size_t n, size_t row, const double *x, const double *y,
+                           const double *z, double dmax, double *q, double *sd, gr_err *e);
 /* Values of offset field f from closest points and signed distances (from
  * gr_offset_closest of any offset field of the same surface): g = d - T(q)
  * (sheet) or sd - T(q) (network); q = NaN gives a bound of the right sign.

@@ -38,6 +38,7 @@ struct gr_job {
   unsigned char *vstate; /* 0 outside, 1 inside, 2 cut */
   gr_field *domain;
   double skin;
+  double tsig;        /* the largest thickness sampled for the signatures, mm */
   gr_vclass *cls;
   int ncls;
   int nlayers;        /* N */

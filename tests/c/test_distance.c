@@ -4,6 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "check.h"
+#include "cptab.h"
 #include "distance.h"
 #include "mc.h"
 
@@ -1078,6 +1079,86 @@ TEST(local_reach_policy) {
   gr_field_free(phi);
 }
 
+/* The shared closest-point table (cptab.h) reaches only as far from H as its
+ * members read it (gr_cptab_reach); a table raised to a larger reach for
+ * thicker members gains the nodes between. Grown from 0.25 to 0.7 mm it
+ * must hold what a table made at 0.7 mm holds: the same nodes with closest
+ * points, the same points (each on phi = 0, p - q along phi's gradient,
+ * |p - q| = |sd|), and bounds >= the reach elsewhere. */
+TEST(table_grows_to_a_larger_reach) {
+  gr_err e = {0};
+  gr_field *phi = gr_field_tpms("primitive", PL, NULL, 0, &e);
+  gr_offset_opts o = gr_offset_defaults();
+  o.surface = phi;
+  o.cell[0] = o.cell[1] = o.cell[2] = PL;
+  for (int a = 0; a < 3; a++) { o.box_lo[a] = 0; o.box_hi[a] = PL; }
+  o.margin = 0.75 * PL;
+  o.res = 20;
+  o.thickness = 0;
+  o.periodic = 1;
+  gr_field *g = phi ? gr_offset_field_new(&o, &e) : NULL;
+  CHECK(g != NULL, "%s", e.msg);
+  double cell[3] = {PL, PL, PL}, org[3] = {0, 0, 0}, h = 0.05;
+  gr_cptab *A = g ? gr_cptab_new(cell, h, 0.2, g, org, 0.53, 0.04, 3, 0.25, &e) : NULL;
+  gr_cptab *B = g ? gr_cptab_new(cell, h, 0.2, g, org, 0.53, 0.04, 3, 0.7, &e) : NULL;
+  CHECK(A && B, "%s", e.msg);
+  int ok = A && B;
+  for (int q = 0; q < 3 && ok; q++) ok = !gr_cptab_layer(A, q, &e) && !gr_cptab_layer(B, q, &e);
+  CHECK(ok, "%s", e.msg);
+  size_t np = A ? (size_t)A->P[0] * A->P[1] * 3 : 0;
+  int small = 0, missing = 0;
+  for (size_t k = 0; k < np && ok; k++) { /* the small table: exact within its reach */
+    int na = isnan(A->q[3 * k]), nb = isnan(B->q[3 * k]);
+    if (na && !nb && fabs(B->sd[k]) < 0.25 - 2 * gr_offset_herr(g)) missing++; /* the mesh decides, within herr */
+    if (na && !(fabs(A->sd[k]) >= 0.25)) small++;
+  }
+  CHECK(missing == 0 && small == 0, "before growing: %d nodes within 0.25 mm without a closest point, %d bounds < 0.25",
+        missing, small);
+  A->dmax = 0.7;
+  for (int q = 0; q < 3 && ok; q++) ok = !gr_cptab_layer(A, q, &e);
+  CHECK(ok, "%s", e.msg);
+  int differ = 0, far = 0, grown = 0, nq = 0;
+  double dq = 0, won = 0, wnorm = 0, wsd = 0;
+  for (size_t k = 0; k < np && ok; k++) {
+    int na = isnan(A->q[3 * k]), nb = isnan(B->q[3 * k]);
+    if (na != nb) { differ++; continue; }
+    if (na) { far += !(fabs(A->sd[k]) >= 0.7); continue; }
+    nq++;
+    grown += fabs(A->sd[k]) > 0.25;
+    for (int a = 0; a < 3; a++) dq = fmax(dq, fabs(A->q[3 * k + a] - B->q[3 * k + a]));
+    dq = fmax(dq, fabs(A->sd[k] - B->sd[k]));
+    /* p from the node's index: row-major over one period, layer k / P^2 */
+    size_t P2 = (size_t)A->P[0] * A->P[1], i = k % P2;
+    double p[3] = {A->lo[0] + (double)(i % A->P[0]) * h, A->lo[1] + (double)(i / A->P[0]) * h, 0.53 + (double)(k / P2) * 0.04};
+    const double *Q = A->q + 3 * k;
+    double gq[3], v = eval1(phi, Q[0], Q[1], Q[2]);
+    gr_field_grad(phi, 1, &Q[0], &Q[1], &Q[2], &gq[0], &gq[1], &gq[2], &e);
+    double d[3] = {p[0] - Q[0], p[1] - Q[1], p[2] - Q[2]}, gn = sqrt(gq[0] * gq[0] + gq[1] * gq[1] + gq[2] * gq[2]);
+    double dl = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    double cr[3] = {d[1] * gq[2] - d[2] * gq[1], d[2] * gq[0] - d[0] * gq[2], d[0] * gq[1] - d[1] * gq[0]};
+    double off = fabs(v) / gn, sinang = dl > 1e-6 ? sqrt(cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]) / (gn * dl) : 0;
+    won = fmax(won, off);
+    wnorm = fmax(wnorm, sinang * dl);
+    wsd = fmax(wsd, fabs(dl - fabs(A->sd[k])));
+  }
+  printf("  info: %zu nodes, %d with closest points (%d beyond the first reach, grown), closest points %.3g mm from"
+         " the table made at 0.7 mm; feet %.3g mm off the surface, %.3g mm off the normal, |sd| %.3g mm off\n", np, nq,
+         grown, dq, won, wnorm, wsd);
+  CHECK(differ == 0, "%d nodes have a closest point in one table only", differ);
+  CHECK(far == 0, "%d nodes without one have a bound below 0.7 mm", far);
+  CHECK(grown > 500, "only %d nodes grown", grown);
+  /* feet are solved onto the surface to far below a nanometre, along it
+   * to 1e-6 L where Newton's method converges; the table's slowest nodes
+   * (d kappa near 1, three of these, 0.36 mm from H) stop within 1e-4 L
+   * along it, which moves their distance by that squared over d: 1e-13 mm */
+  CHECK(dq < 1e-6 * PL, "grown and made at 0.7 mm differ by %g mm", dq);
+  CHECK(won < 1e-9 && wnorm < 1e-4 * PL && wsd < 1e-12, "a foot off by %g / %g / %g mm", won, wnorm, wsd);
+  gr_cptab_free(A);
+  gr_cptab_free(B);
+  gr_field_free(g);
+  gr_field_free(phi);
+}
+
 int main(void) {
   RUN(triangle_vs_sampling);
   RUN(bvh_sphere);
@@ -1097,5 +1178,6 @@ int main(void) {
   RUN(value_floor_bounds);
   RUN(local_reach_bound);
   RUN(local_reach_policy);
+  RUN(table_grows_to_a_larger_reach);
   DONE();
 }

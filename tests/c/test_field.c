@@ -651,6 +651,49 @@ TEST(gradients_at_many_points) {
   gr_field_free(x);
 }
 
+/* Many points in one call take their sines and cosines from the vector math
+ * library (vecmath.h), a chunk at a time: values and gradients must match
+ * the formulas (libm, one point at a time) at every point of a batch longer
+ * than a chunk, whatever its length modulo the vector width, and a point
+ * evaluated alone must give its batch's value to the bit. */
+TEST(batches_match_formulas) {
+  srand(5);
+  gr_err e = {0};
+  enum { N = 1003 };
+  static double x[N], y[N], z[N], v[N], v2[N], gx[N], gy[N], gz[N], hx[N], hy[N], hz[N];
+  for (int s = 0; s < 10; s++) {
+    double L = rnd(0.5, 5), o[3] = {rnd(-3, 3), rnd(-3, 3), rnd(-3, 3)}, w = 2 * M_PI / L, lv = rnd(-0.3, 0.3);
+    gr_field *f = gr_field_tpms(gr_tpms_name(s), L, o, lv, &e);
+    CHECK(f != NULL, "%s", e.msg);
+    if (!f) continue;
+    for (int i = 0; i < N; i++) { x[i] = rnd(-50, 50); y[i] = rnd(-50, 50); z[i] = rnd(-50, 50); }
+    int ok = !gr_field_eval(f, N, x, y, z, v, &e) && !gr_field_eval_grad(f, N, x, y, z, v2, gx, gy, gz, &e) &&
+             !gr_field_grad(f, N, x, y, z, hx, hy, hz, &e);
+    CHECK(ok, "%s: %s", gr_tpms_name(s), e.msg);
+    double dv = 0, dg = 0, dsame = 0;
+    for (int i = 0; i < N && ok; i++) {
+      double X = w * (x[i] - o[0] - L / 2), Y = w * (y[i] - o[1] - L / 2), Z = w * (z[i] - o[2] - L / 2), k = 1e-6;
+      dv = fmax(dv, fabs(v[i] - (ref_phi(s, X, Y, Z) - lv)));
+      double fd[3] = {(ref_phi(s, X + k, Y, Z) - ref_phi(s, X - k, Y, Z)) / (2 * k) * w,
+                      (ref_phi(s, X, Y + k, Z) - ref_phi(s, X, Y - k, Z)) / (2 * k) * w,
+                      (ref_phi(s, X, Y, Z + k) - ref_phi(s, X, Y, Z - k)) / (2 * k) * w};
+      dg = fmax(dg, fmax(fabs(gx[i] - fd[0]), fmax(fabs(gy[i] - fd[1]), fabs(gz[i] - fd[2]))));
+      dsame = fmax(dsame, fmax(fabs(v2[i] - v[i]), fmax(fabs(hx[i] - gx[i]), fmax(fabs(hy[i] - gy[i]), fabs(hz[i] - gz[i])))));
+    }
+    CHECK(dv < 1e-12, "%s: values off the formula by %g", gr_tpms_name(s), dv); /* a few ulp of values up to 13 */
+    /* a point's value does not depend on the batch it comes in: alone, the same bits */
+    int moved = 0;
+    for (int i = 0; i < N && ok; i += 7) {
+      double one = ev(f, x[i], y[i], z[i]);
+      moved += memcmp(&one, &v[i], sizeof one) != 0;
+    }
+    CHECK(moved == 0, "%s: %d points evaluated alone differ from their batch's value", gr_tpms_name(s), moved);
+    CHECK(dg < 1e-7 * (1 + w), "%s: gradients off the formula's differences by %g", gr_tpms_name(s), dg);
+    CHECK(dsame == 0, "%s: eval, eval_grad and grad disagree by %g", gr_tpms_name(s), dsame);
+    gr_field_free(f);
+  }
+}
+
 int main(void) {
   RUN(catalogue_names);
   RUN(primitive_known_points);
@@ -666,5 +709,6 @@ int main(void) {
   RUN(hessian);
   RUN(moved_points);
   RUN(gradients_at_many_points);
+  RUN(batches_match_formulas);
   DONE();
 }
