@@ -4,6 +4,22 @@
  * where the processor has AVX2, the SSE ones (x86-64's baseline) elsewhere. */
 #include "vecmath.h"
 #include <math.h>
+#include <unistd.h>
+
+#if defined(__x86_64__) && defined(__GNUC__) && defined(__AVX2__)
+/* A build for x86-64-v3 (the Makefile's ARCH, where the building machine has
+ * it) checks the processor before anything else runs: without AVX2, FMA or
+ * BMI2 it says so and exits 1 instead of dying of an illegal instruction.
+ * This function itself is compiled for plain x86-64. */
+__attribute__((constructor, target("arch=x86-64"))) static void gr_cpu_level_check(void) {
+  __builtin_cpu_init();
+  if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && __builtin_cpu_supports("bmi2")) return;
+  static const char msg[] = "gradus: this build uses x86-64-v3 instructions (AVX2, FMA, BMI2), which this processor "
+                            "lacks; rebuild it on this machine with: make clean && make ARCH=\n";
+  if (write(2, msg, sizeof msg - 1) < 0) _exit(1);
+  _exit(1);
+}
+#endif
 
 #if defined(__x86_64__) && defined(__GLIBC__)
 #include <immintrin.h>
