@@ -1093,12 +1093,21 @@ static void offset_touch_warning(offset *f, const gr_offset_opts *o, int shared,
   }
 }
 
-/* The exact closest point of p (H's nearest part refined), or 0. */
+/* The exact closest point of p (H's nearest part refined), or 0: by Newton's
+ * method from the mesh's nearest point (quadratic, a few steps), by the
+ * alternating refinement where that does not settle (it moves only towards
+ * a local minimum of the distance, slowly where d kappa nears 1: the cut
+ * distances of the reach measure exactly such points). */
 static int exact_foot(const offset *f, const double p[3], double q[3]) {
   gr_hit h;
   closest_h(f, p, INFINITY, &h);
-  if (h.tri < 0 || !exact_refine(f, p, h.q)) return 0;
-  memcpy(q, h.q, sizeof h.q);
+  if (h.tri < 0) return 0;
+  double x[3] = {h.q[0], h.q[1], h.q[2]};
+  if (!exact_newton(f, p, x)) {
+    memcpy(x, h.q, sizeof x);
+    if (!exact_refine(f, p, x)) return 0;
+  }
+  memcpy(q, x, sizeof x);
   return 1;
 }
 
