@@ -486,20 +486,25 @@ static void node_shift(const gr_cptab *t, int nx, const double sh[3], size_t n, 
 
 /* How far from H (|sd|, mm) the nodes' values are exact (the band above;
  * everywhere for a trimmed field); grid spacing h. node_values takes it. */
+static double band_for(double tmax, double herr, double h) { return tmax + FAR_CELLS * h + 2 * herr; }
 static double value_band(const gr_field *f, int cut, double h) {
   double tmax = gr_offset_max_thickness(f);
-  return !cut && tmax >= 0 ? tmax + FAR_CELLS * h + 2 * gr_offset_herr(f) : INFINITY;
+  return !cut && tmax >= 0 ? band_for(tmax, gr_offset_herr(f), h) : INFINITY;
 }
+
+/* The chord search's farthest points from the section, grid cells (march.c:
+ * the corner search, at most four cells). */
+#define CHORD_CELLS 4
 
 double gr_cptab_reach(const gr_field *f, double h) {
   const gr_field *g = f, *d = NULL;
   double skin = 0;
   int cut = gr_domain_trim_parts(f, &g, &d, &skin);
-  return value_band(g, cut, h) + 4 * h;
+  return value_band(g, cut, h) + CHORD_CELLS * h;
 }
 
 double gr_cptab_reach_est(const gr_field *ref, double tmax, double h) {
-  return tmax + FAR_CELLS * h + 2 * gr_offset_herr(ref) + 4 * h;
+  return band_for(tmax, gr_offset_herr(ref), h) + CHORD_CELLS * h;
 }
 
 static int node_values(const gr_cptab *t, int q, const gr_field *f, double band, int nx, size_t nn,
