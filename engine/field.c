@@ -169,6 +169,9 @@ static void vsincos(size_t n, double *s, double *c) {
   gr_vcos(n4, c);
 }
 
+/* The phase of coordinate x along axis a of TPMS field f (rad). */
+static double tpms_phase(const gr_field *f, int a, double x) { return f->w[a] * (x - (f->origin[a] + f->cell[a] / 2)); }
+
 /* phi - level of TPMS field f at n points (out, or NULL) and its gradient
  * (gx, gy, gz, or NULL): the sines and cosines of a chunk of points at once
  * through the vector math library (vecmath.h: within 4 ulp, a few times
@@ -181,10 +184,8 @@ static void tpms_batch(const gr_field *f, size_t n, const double *x, const doubl
   const double *w = f->w, *pt[3] = {x, y, z};
   for (size_t o = 0; o < n; o += B) {
     size_t m = n - o < B ? n - o : B;
-    for (int a = 0; a < 3; a++) {
-      double oa = f->origin[a] + f->cell[a] / 2;
-      for (size_t i = 0; i < m; i++) sn[3 * i + a] = w[a] * (pt[a][o + i] - oa);
-    }
+    for (size_t i = 0; i < m; i++)
+      for (int a = 0; a < 3; a++) sn[3 * i + a] = tpms_phase(f, a, pt[a][o + i]);
     vsincos(3 * m, sn, cs);
     for (size_t i = 0; i < m; i++) {
       const double *S = sn + 3 * i, *C = cs + 3 * i;
@@ -706,7 +707,6 @@ int gr_field_move_grad(const gr_field *f, gr_field_at *at, const double dp[3], d
 }
 
 /* A TPMS's phase along axis a at coordinate x. */
-static double tpms_phase(const gr_field *f, int a, double x) { return f->w[a] * (x - (f->origin[a] + f->cell[a] / 2)); }
 
 /* A TPMS's value and gradient from the phases' sines and cosines in *at
  * (at->p the point), which becomes valid for moves (trig = 1). */
@@ -850,11 +850,7 @@ static int fill_grid_tpms(const gr_field *f, const grid_axes *g, double *v, gr_e
   double *c[3] = {s[0] + room, s[1] + room, s[2] + room};
   for (int a = 0; a < 3; a++) {
     int n = a < 2 ? g->n[a] : nz;
-    double o = f->origin[a] + f->cell[a] / 2;
-    for (int i = 0; i < n; i++) {
-      double p = a == 2 && g->dim == 2 ? g->z : g->lo[a] + i * g->h[a];
-      s[a][i] = f->w[a] * (p - o);
-    }
+    for (int i = 0; i < n; i++) s[a][i] = tpms_phase(f, a, a == 2 && g->dim == 2 ? g->z : g->lo[a] + i * g->h[a]);
   }
   vsincos((size_t)cnt, t, t + room); /* as tpms_batch: the same bits as gr_field_eval */
   size_t q = 0;

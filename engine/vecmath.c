@@ -16,7 +16,7 @@ __attribute__((constructor, target("arch=x86-64"))) static void gr_cpu_level_che
   if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && __builtin_cpu_supports("bmi2")) return;
   static const char msg[] = "gradus: this build uses x86-64-v3 instructions (AVX2, FMA, BMI2), which this processor "
                             "lacks; rebuild it on this machine with: make clean && make ARCH=\n";
-  if (write(2, msg, sizeof msg - 1) < 0) _exit(1);
+  (void)!write(2, msg, sizeof msg - 1);
   _exit(1);
 }
 #endif
