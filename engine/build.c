@@ -6,6 +6,7 @@
 #include "distance.h"
 #include "domain.h"
 #include "pool.h"
+#include "regions.h"
 
 /* Offset options of spec s for the voxel with min corner o (u, v, w
  * relative to that voxel), H meshed over it grown by a margin (+ extra, mm). */
@@ -171,7 +172,7 @@ static int layers_item(void *arg_, int item, gr_err *e) {
   gr_job *j = a->j;
   int c = a->wc[item];
   const gr_vclass *cl = &j->cls[c];
-  gr_tmpl_in in = {&j->o, &j->grid, {0, 0, 0}, 0, cl->edge};
+  gr_tmpl_in in = {&j->o, &j->grid, {0, 0, 0}, 0, cl->edge, gr_job_window(j)};
   int i, jj, k;
   gr_grid_origin(&j->grid, cl->rep, in.vo);
   gr_grid_ijk(&j->grid, cl->rep, &i, &jj, &k);
@@ -294,7 +295,7 @@ static gr_cptab *make_table(gr_build *a, int c, gr_field *g, double dmax, gr_err
   gr_grid_ijk(&j->grid, cl->rep, &i, &jj, &k);
   double phase = gr_grid_mid(&j->grid, gr_grid_row_first(&j->grid, k)) - o[2];
   double z0 = j->o.origin[2] + round(phase / 1e-9) * 1e-9 + cl->t->j0 * j->o.layer;
-  gr_cptab *t = gr_cptab_new(j->o.cell, j->o.slice_cell, gr_tmpl_window(&j->o), g, j->o.origin, z0, j->o.layer,
+  gr_cptab *t = gr_cptab_new(j->o.cell, j->o.slice_cell, gr_job_window(j), g, j->o.origin, z0, j->o.layer,
                              cl->t->nl, dmax, e);
   if (t && fill_table(a, t, dmax, e)) {
     gr_cptab_free(t);

@@ -218,7 +218,7 @@ static double slab_d2(const bnode *n, const double p[3]) {
 static double box_far2(const bnode *n, const double c[3]) {
   double s = 0;
   for (int a = 0; a < 3; a++) {
-    double d = fmax(fabs(c[a] - n->lo[a]), fabs(n->hi[a] - c[a]));
+    double d = gr_hi(fabs(c[a] - n->lo[a]), fabs(n->hi[a] - c[a]));
     s += d * d;
   }
   return s;
@@ -275,8 +275,8 @@ static void closest(const gr_bvh *b, const double p[3], double maxdist, const do
     int near = dl < dr ? n->left : n->right, far = dl < dr ? n->right : n->left;
     double dn = dl < dr ? dl : dr, df = dl < dr ? dr : dl;
     /* (the order stays by box distance; the slab only prunes) */
-    if (df <= best && (df = fmax(df, slab_d2(&b->node[far], p))) <= best) { stack[sp] = far; sd2[sp++] = df; }
-    if (dn <= best && (dn = fmax(dn, slab_d2(&b->node[near], p))) <= best) { stack[sp] = near; sd2[sp++] = dn; }
+    if (df <= best && (df = gr_hi(df, slab_d2(&b->node[far], p))) <= best) { stack[sp] = far; sd2[sp++] = df; }
+    if (dn <= best && (dn = gr_hi(dn, slab_d2(&b->node[near], p))) <= best) { stack[sp] = near; sd2[sp++] = dn; }
   }
   if (h->tri >= 0) h->dist = sqrt(best);
 }

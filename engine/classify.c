@@ -3,6 +3,7 @@
 #include "density.h"
 #include "domain.h"
 #include "template.h"
+#include "regions.h"
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -137,11 +138,11 @@ static char *voxel_signature(gr_job *j, int v, gr_err *e) {
   size_t len = (size_t)snprintf(
       sig, cap,
       GR_TEMPLATE_GEOMETRY " surface: %s, L: %s, level: %.9g, kind: %s, side: %d, "
-      "phase: %.9g, layers: %d, t: %.9g, d: %.9g, b: %.9g, contours: %d, cell: %.9g, res: %d, "
+      "phase: %.9g, layers: %d, t: %.9g, d: %.9g, b: %.9g, contours: %d, cell: %.9g, window: %.9g, res: %d, "
       "mode: %s, quant: %.9g, T: [",
       gr_tpms_name(s->surface), cell_text(L).s, s->level, s->network ? "network" : "sheet", s->side,
       round(phase / 1e-9) * 1e-9, gr_grid_row_layers(&j->grid, k), j->o.layer, j->o.hatch,
-      j->o.beam_offset, j->o.contours, j->o.slice_cell, j->o.res,
+      j->o.beam_offset, j->o.contours, j->o.slice_cell, gr_job_window(j), j->o.res,
       j->o.exact ? "exact" : "mesh", j->o.quant);
   for (int q = 0; q < N; q++)
     len += (size_t)snprintf(sig + len, cap - len, "%s%lld", q ? "," : "", (long long)llround(t[q] / j->o.quant));
@@ -160,13 +161,13 @@ static char *voxel_signature(gr_job *j, int v, gr_err *e) {
 }
 
 /* The key of the domain's boundary near trimmed voxel v (domain.h): the
- * box is the template's window (gr_tmpl_window) in x and y and the voxel in
+ * box is the template's window (gr_job_window) in x and y and the voxel in
  * z, grown by the skin and a quarter cell, beyond which only d's sign
  * matters to the trimmed value's zero set (the lattice's zero set where d <
  * -skin, none where d > 0). 1 and key, 0 (no key), -1 (error). */
 static int trimmed_key(gr_job *j, int v, char key[65], gr_err *e) {
   const double *L = j->o.cell;
-  double m = gr_tmpl_window(&j->o), D = j->skin + 0.25 * fmin(L[0], fmin(L[1], L[2]));
+  double m = gr_job_window(j), D = j->skin + 0.25 * fmin(L[0], fmin(L[1], L[2]));
   double o[3], lo[3] = {-m - D, -m - D, -D}, hi[3] = {L[0] + m + D, L[1] + m + D, L[2] + D};
   gr_grid_origin(&j->grid, v, o);
   int rc = gr_domain_local_key(j->domain, lo, hi, o, key, e);

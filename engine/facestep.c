@@ -20,6 +20,7 @@
 #include <stdint.h>
 #include "clip.h"
 #include "hatch.h"
+#include "regions.h"
 
 /* Piece end points within this of a box side lie on it (mm). */
 #define ON_SIDE 1e-9
@@ -473,7 +474,7 @@ static int stepped_layer(const gr_job *j, const fs_key *k, gr_tlayer **out, gr_e
   st->cut[0] = st->cut[1] = st->cut[2] = st->cut[3] = NAN; /* its box sides lie just inside the windows' */
   const gr_rings *nb[9];
   for (int q = 0; q < 9; q++) nb[q] = k->nb[q] ? k->nb[q]->section : NULL;
-  int rc = gr_fstep_section(j->o.cell, gr_tmpl_window(&j->o), nb, st->section, e);
+  int rc = gr_fstep_section(j->o.cell, gr_job_window(j), nb, st->section, e);
   if (rc == GR_EARG) { /* degenerate: keep the template's layer */
     gr_err_clear(e);
     gr_fstep_free(st);

@@ -75,11 +75,13 @@ void gr_sha256_hex(const void *data, size_t n, char out[65]);
  * chords cut, 19 since offsets come straight from the section's edges where
  * simple (2026-11-29), 20 since thick sheets' Newton finish starts from the
  * model's last foot and crossings whose grid line is smooth come from the
- * nodes' cubic (contours move within the chord tolerance, 2026-11-29).
+ * nodes' cubic (contours move within the chord tolerance, 2026-11-29), 21
+ * since the window's cut sides move out by b (2b) and the window is as deep
+ * as a skin's contours (its margin is in the signature, 2026-11-29).
  * A template whose
  * signature begins otherwise was built under an older rule: its key is never
  * asked for again, `gradus kb list` marks it stale and prune removes it. */
-#define GR_TEMPLATE_GEOMETRY "{gradus_template: 20, grading: voxel-owned,"
+#define GR_TEMPLATE_GEOMETRY "{gradus_template: 21, grading: voxel-owned,"
 /* 1 when a signature is a Gradus template's of an older engine geometry
  * (it begins with "{gradus_template: " but not with GR_TEMPLATE_GEOMETRY). */
 int gr_kb_stale(const char *signature);

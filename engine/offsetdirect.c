@@ -41,9 +41,16 @@
 
 /* Segments nearer than this (mm) count as meeting. */
 #define DIRECT_EPS 1e-8
-/* A cut's sides move out by this many b: no offset of the section (at most
- * b beyond them) reaches them. */
-#define CUT_OUT 2.0
+/* A cut's sides move out by this many b. By b, the join of an edge with a
+ * side lies b from both lines, on a bisector at their vertex, and within
+ * 1.5 b of it for an edge meeting the side at up to 90 degrees; moved out
+ * farther, an edge's line meets the side's farther along, and two
+ * components close together on one side had their joins cross beyond the
+ * window: the offset declined (a thick graded diamond sheet, T = 0.26 +
+ * 0.04 sin(x/3) cos(y/2.5): 3.6 % of template layers by 2 b, 1.8 % by b;
+ * gyroid 2.4 % and 0.2 %). No offset of the section reaches the moved
+ * side but along the side itself (an edge b from it moves onto it). */
+#define CUT_OUT 1.0
 /* The chord tolerance's shares: arcs' chords (and a small turn's mitre at
  * half of it), and the simplification of the rings after (Douglas-Peucker
  * on points of the offset, whose chords lie on it but across arcs): a

@@ -96,6 +96,8 @@ int gr_regions_skin_contours(const gr_job *j) {
   return j->regions && j->regions->o.skin_contours > 0 ? j->regions->o.skin_contours : j->o.contours;
 }
 
+double gr_job_window(const gr_job *j) { return gr_tmpl_window(&j->o, gr_regions_skin_contours(j)); }
+
 pthread_mutex_t *gr_regions_mutex(gr_job *j) {
   return j->regions && !gr_field_threadsafe(j->domain) ? &j->regions->mu : NULL;
 }

@@ -62,6 +62,9 @@ double gr_regions_line(const gr_job *j);
 double gr_regions_hatch(const gr_job *j, int r);
 /* The skin's contour count (the job's when it has none of its own). */
 int gr_regions_skin_contours(const gr_job *j);
+/* The margin of the job's template windows (gr_tmpl_window): deep enough
+ * for the skin's contours. */
+double gr_job_window(const gr_job *j);
 /* The lock around domain evaluations (NULL when the domain is thread-safe). */
 pthread_mutex_t *gr_regions_mutex(gr_job *j);
 /* The regions asked for (bit mask, 0 = none). */

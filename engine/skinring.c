@@ -48,7 +48,7 @@ gr_skinring *gr_skinring_new(gr_job *j, int g, int v, const gr_tlayer *tl, gr_er
   s->z = gr_grid_mid(&j->grid, g);
   s->n = j->o.contours;
   s->k = k;
-  s->m = gr_tmpl_window(&j->o);
+  s->m = gr_job_window(j);
   s->hk = j->o.beam_offset + (k - 1) * j->o.hatch + gr_hatch_defaults().gap;
   gr_rings *nested = gr_rings_new();
   int rc = (nested && !gr_rings_copy(nested, tl->section)) ? gr_rings_nest(nested, e) : gr_fail(e, GR_EMEM, "out of memory");

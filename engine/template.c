@@ -243,10 +243,13 @@ static int verify_template_layer(const gr_job_opts *o, gr_tlayer *tl, double ang
 }
 
 /* Margin of a template's slice window around the voxel: whole grid cells,
- * wide enough for the contours and hatch region of the voxel's edge. */
-double gr_tmpl_window(const gr_job_opts *o) {
-  double h = o->slice_cell;
-  return ceil((o->beam_offset + (o->contours + 1) * o->hatch + 2 * h) / h) * h;
+ * wide enough for the contours and hatch region of the voxel's edge (b +
+ * (contours + 1) d + 2h), and for the deepest contour along a skin (b +
+ * (deep - 1) d + 2h) where a region scans more. */
+double gr_tmpl_window(const gr_job_opts *o, int deep) {
+  double h = o->slice_cell, d = o->hatch;
+  double far = o->beam_offset + fmax((o->contours + 1) * d, (deep - 1) * d);
+  return ceil((far + 2 * h) / h) * h;
 }
 
 /* Contour, thin-wall and hatch-region options of the templates. */
@@ -306,7 +309,7 @@ int gr_tmpl_layers(const gr_tmpl_in *in, gr_tmpl *t, const gr_field *f, const gr
   int g0 = in->g0;
   const double *L = opt->cell;
   double h = opt->slice_cell;
-  double m = gr_tmpl_window(opt);
+  double m = in->win;
   gr_slice_opts so = gr_slice_defaults();
   so.lo[0] = o[0] - m;
   so.lo[1] = o[1] - m;

@@ -60,6 +60,7 @@ typedef struct gr_tmpl_in {
   int g0;               /* the voxel row's first global layer */
   int faces;            /* 1: the side segments too (a voxel of the class lies on the part's
                            boundary); 0: tl->faces left NULL (no assembly reads them) */
+  double win;           /* the slice window's margin (gr_tmpl_window), mm */
 } gr_tmpl_in;
 
 /* A template for local layers [ja, jb), layers empty; NULL when out of memory. */
@@ -70,8 +71,10 @@ void gr_tmpl_free(gr_tmpl *t);
  * thin-wall counts stay for qualification. */
 void gr_tmpl_release(gr_tmpl *t, int qa, int qb);
 /* Margin of a template's slice window around the voxel (mm): whole slice
- * cells, wide enough for the contours and hatch region of the voxel's edge. */
-double gr_tmpl_window(const gr_job_opts *o);
+ * cells, wide enough for the contours and hatch region of the voxel's edge;
+ * deep: the most contours scanned along a boundary (the job's, or more
+ * along a skin: gr_job_window). */
+double gr_tmpl_window(const gr_job_opts *o, int deep);
 
 /* Where the section's edge runs along a voxel's outer side (a domain whose
  * face lies on the part's box), the contour at c and the side moved in by c

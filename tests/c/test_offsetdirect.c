@@ -240,7 +240,7 @@ TEST(random_stars_match_the_grid) {
 }
 
 /* The disk x^2 + y^2 < 1 (a 4000-gon) cut to the window x >= -0.5 (and
- * y, x < 2 beyond it): the cut side is no wall and moves out by 2B, where
+ * y, x < 2 beyond it): the cut side is no wall and moves out by B, where
  * the section's own offset would have moved it in by B; away from it the
  * offset is the circle of radius 1 - B (to the 4000-gon's 1 - cos(pi/n)). */
 TEST(cut_side_moves_out) {
@@ -272,7 +272,7 @@ TEST(cut_side_moves_out) {
       wmid = fmax(wmid, fabs(hypot(0.5 * (x + q[0]), 0.5 * (y + q[1])) - (1 - B)));
     }
   }
-  CHECK_NEAR(xmin, -h - 2 * B, 1e-12);
+  CHECK_NEAR(xmin, -h - B, 1e-12);
   /* vertices on the 4000-gon's offset; chords within the tolerance of it
    * (the points between simplified away, convex: no arcs) */
   CHECK(away > 50 && worst <= dev + 1e-12 && wmid <= dev + TOL,
@@ -291,8 +291,8 @@ TEST(cut_side_moves_out) {
  * (x < 0.02, 0.2 < y < 0.8) open to its left side: without the cut its
  * offset closes over the notch's mouth (the short stubs of the left side
  * swallowed by the notch's edges) and the direct offset declines; with it
- * the sides move out by 2B and the notch's edges in by B: the square
- * [-2B, 1 + 2B]^2 less the notch grown by B, round at its two inner
+ * the sides move out by B and the notch's edges in by B: the square
+ * [-B, 1 + B]^2 less the notch grown by B, round at its two inner
  * corners (chords inside the arcs, within the tolerance). */
 TEST(notch_at_the_cut) {
   double p[] = {0, 0, 1, 0, 1, 1, 0, 1, 0, 0.8, 0.02, 0.8, 0.02, 0.2, 0, 0.2};
@@ -302,7 +302,7 @@ TEST(notch_at_the_cut) {
   int done = 1;
   gr_rings *o = direct_cut(r, cut, &done);
   CHECK(done && o->nrings == 1, "with the cut: done %d, rings %zu", done, o->nrings);
-  double s = 1 + 4 * B, notch = (0.02 + B + 2 * B) * (0.6 + 2 * B) - 2 * (1 - M_PI / 4) * B * B;
+  double s = 1 + 2 * B, notch = (0.02 + 2 * B) * (0.6 + 2 * B) - 2 * (1 - M_PI / 4) * B * B;
   double a = gr_rings_area(o), want = s * s - notch;
   CHECK(a >= want && a <= want + 2 * M_PI * B * TOL, "area %.9f, want %.9f", a, want);
   /* the vertices inside the square: at B from the notch's edges (the
@@ -324,6 +324,38 @@ TEST(notch_at_the_cut) {
   gr_rings_free(o);
 }
 
+/* Two parts of the section on one side of the cut (x = 0), 0.01 apart
+ * there, their facing edges slanting away from each other at 45 degrees
+ * into the window: the joins of those edges with the moved side lie
+ * between the parts' ends on the side (by B they stay on each part's own
+ * bisector; moved out by 2B they crossed, and the offset declined): the
+ * direct offset is made, two rings, and every vertex farther than 3B from
+ * the cut lies at B from the section's edges. */
+TEST(slanted_parts_at_the_cut) {
+  double g = 0.01, yA = 0.5, yB = yA + g, cut[4] = {0, -3, 3, 4};
+  double a[] = {0, -2, 2, -2, 2, yA - 2, 0, yA}, b[] = {0, yB, 2, yB + 2, 2, 3, 0, 3};
+  gr_rings *r = gr_rings_new();
+  gr_rings_add(r, a, 4);
+  gr_rings_add(r, b, 4);
+  gr_rings *sec = gr_rings_new();
+  gr_rings_copy(sec, r);
+  int done = 0;
+  gr_rings *o = direct_cut(r, cut, &done);
+  CHECK(done && o->nrings == 2, "done %d, rings %zu", done, o->nrings);
+  int away = 0;
+  for (size_t k = 0; k < o->npts; k++) {
+    double x = o->xy[2 * k], y = o->xy[2 * k + 1];
+    if (!(x > 3 * B)) continue;
+    away++;
+    double d = rings_dist(sec, x, y);
+    CHECK(fabs(d - B) <= 1e-9, "vertex (%.6f, %.6f) %.9f from the section", x, y, d);
+  }
+  CHECK(away >= 4, "%d vertices away from the cut", away);
+  gr_rings_free(r);
+  gr_rings_free(sec);
+  gr_rings_free(o);
+}
+
 int main(void) {
   RUN(regular_polygon_area);
   RUN(square_with_hole_area);
@@ -333,5 +365,6 @@ int main(void) {
   RUN(random_stars_match_the_grid);
   RUN(cut_side_moves_out);
   RUN(notch_at_the_cut);
+  RUN(slanted_parts_at_the_cut);
   DONE();
 }

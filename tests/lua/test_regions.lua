@@ -162,6 +162,30 @@ t.test("skin contours: 3 along the T's outer surface (rectangles b, b + d, b + 2
   end
 end)
 
+t.test("six skin contours reach past the template window's usual margin: every rectangle whole", function()
+  -- a solid bar [0.5, 2.47] x [0.5, 3.5]: its right side lies 0.47 mm beyond the voxels' face
+  -- x = 2, past a margin of b + 2d + 2 cells (0.35 mm); the deepest contours (b + 4d, b + 5d
+  -- in) of the voxels left of the face come from that side, so their windows reach it
+  local bar = mx("0.5-x", "x-2.47", "0.5-y", "y-3.5", "-z", "z-0.3")
+  local path = write_profile("skin6.yaml", "regions:\n  skin: {power: 200, speed: 1250, contours: 6}\n")
+  local o6 = tmp .. "/skin6.cli"
+  lattice.run(params { regions = path, domain = bar, size = "4,4,0.3" }, o6)
+  local cli = gradus.cli.read(o6)
+  t.eq(#cli.layers, 3, "three layers")
+  for g, l in ipairs(cli.layers) do
+    local cl = 0
+    for _, b in ipairs(l:blocks()) do
+      if b.kind ~= "hatch" then
+        local p = b.points
+        for q = 1, #p - 2, 2 do cl = cl + math.sqrt((p[q + 2] - p[q]) ^ 2 + (p[q + 3] - p[q + 1]) ^ 2) end
+      end
+    end
+    local want = 0
+    for i = 0, 5 do want = want + 2 * (1.97 - 2 * (h + i * D)) + 2 * (3 - 2 * (h + i * D)) end
+    t.near(cl, want, 1e-6, ("layer %d: six contour rectangles %.6f mm, want %.6f"):format(g, cl, want))
+  end
+end)
+
 t.test("skin contours on a gyroid cut to a cylinder: extra rings along the surface only, pores' contours unchanged", function()
   local function run(prof, path)
     local q = lattice.params()
