@@ -145,6 +145,49 @@ function M.contour_check(layer, o)
   return rep
 end
 
+-- The segments of a layer's blocks of one kind in cells of h mm: key -> list.
+function M.seg_cells(layer, kind, h)
+  local cells = {}
+  for _, b in ipairs(layer:blocks()) do
+    if b.kind == kind then
+      local p = b.points
+      for q = 1, #p - 3, 2 do
+        local s = { p[q], p[q + 1], p[q + 2], p[q + 3] }
+        for i = math.floor(math.min(s[1], s[3]) / h), math.floor(math.max(s[1], s[3]) / h) do
+          for j = math.floor(math.min(s[2], s[4]) / h), math.floor(math.max(s[2], s[4]) / h) do
+            local k = i .. ":" .. j
+            cells[k] = cells[k] or {}
+            table.insert(cells[k], s)
+          end
+        end
+      end
+    end
+  end
+  return cells
+end
+
+-- Largest distance from a point of pts to the segments in cells (h when
+-- none lies within h).
+function M.farthest(pts, cells, h)
+  local worst = 0
+  for _, pt in ipairs(pts) do
+    local best, ci, cj = h, math.floor(pt[1] / h), math.floor(pt[2] / h)
+    for i = ci - 1, ci + 1 do
+      for j = cj - 1, cj + 1 do
+        for _, s in ipairs(cells[i .. ":" .. j] or {}) do
+          local ex, ey = s[3] - s[1], s[4] - s[2]
+          local L2 = ex * ex + ey * ey
+          local u = L2 > 0 and ((pt[1] - s[1]) * ex + (pt[2] - s[2]) * ey) / L2 or 0
+          u = math.max(0, math.min(1, u))
+          best = math.min(best, math.sqrt((s[1] + u * ex - pt[1]) ^ 2 + (s[2] + u * ey - pt[2]) ^ 2))
+        end
+      end
+    end
+    worst = math.max(worst, best)
+  end
+  return worst
+end
+
 function M.done()
   if M.failed > 0 then error(M.failed .. " test(s) failed", 0) end
 end

@@ -218,41 +218,6 @@ t.test("skin contours on a gyroid cut to a cylinder: extra rings along the surfa
       end
       return n, dev, pore, hmax
     end
-    -- the largest distance from points to the contours of a layer (segments bucketed by 0.1 mm)
-    local function farthest(pts, cli)
-      local B, cells = 0.1, {}
-      for _, bk in ipairs(cli.layers[g]:blocks()) do
-        if bk.kind ~= "hatch" then
-          local p = bk.points
-          for q = 1, #p - 3, 2 do
-            local s = { p[q], p[q + 1], p[q + 2], p[q + 3] }
-            for i = math.floor(math.min(s[1], s[3]) / B), math.floor(math.max(s[1], s[3]) / B) do
-              for j = math.floor(math.min(s[2], s[4]) / B), math.floor(math.max(s[2], s[4]) / B) do
-                local k = i .. "," .. j
-                cells[k] = cells[k] or {}
-                table.insert(cells[k], s)
-              end
-            end
-          end
-        end
-      end
-      local worst = 0
-      for _, pt in ipairs(pts) do
-        local best, ci, cj = math.huge, math.floor(pt[1] / B), math.floor(pt[2] / B)
-        for i = ci - 1, ci + 1 do
-          for j = cj - 1, cj + 1 do
-            for _, s in ipairs(cells[i .. "," .. j] or {}) do
-              local ex, ey = s[3] - s[1], s[4] - s[2]
-              local L2 = ex * ex + ey * ey
-              local u = L2 > 0 and math.max(0, math.min(1, ((pt[1] - s[1]) * ex + (pt[2] - s[2]) * ey) / L2)) or 0
-              best = math.min(best, math.sqrt((s[1] + u * ex - pt[1]) ^ 2 + (s[2] + u * ey - pt[2]) ^ 2))
-            end
-          end
-        end
-        worst = math.max(worst, best)
-      end
-      return worst
-    end
     local n1, _, pore1, h1 = scan(c1)
     local n3, dev3, pore3, h3 = scan(c3)
     t.ok(n1[2] == 0 and n1[3] == 0 and n3[2] > 100 and n3[3] > 100, ("layer %d: one ring along the surface without, three with (%d, %d, %d points)"):format(g, n3[1], n3[2], n3[3]))
@@ -261,7 +226,8 @@ t.test("skin contours on a gyroid cut to a cylinder: extra rings along the surfa
     -- the skin's contours scanned deeper widen the templates' window: the pores' contours keep
     -- their place, not every vertex: each within the offsets' chord tolerance (0.5 um) of the
     -- offset of a section whose own chords are within 0.2 um: 1.2 um apart at most
-    local a, z = farthest(pore3, c1), farthest(pore1, c3)
+    local a = t.farthest(pore3, t.seg_cells(c1.layers[g], "contour", 0.1), 0.1)
+    local z = t.farthest(pore1, t.seg_cells(c3.layers[g], "contour", 0.1), 0.1)
     t.ok(#pore1 > 100 and #pore3 > 100 and a < 1.2e-3 and z < 1.2e-3,
       ("layer %d: the pores' contours unchanged (%d and %d points, within %.3g and %.3g um)"):format(g, #pore1, #pore3, a * 1e3, z * 1e3))
     t.ok(h3 <= R - b - 2 * d + 1e-6 and h1 <= R - b + 1e-6 and h1 > R - b - 1e-3,
