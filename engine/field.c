@@ -706,8 +706,6 @@ int gr_field_move_grad(const gr_field *f, gr_field_at *at, const double dp[3], d
   return GR_OK;
 }
 
-/* A TPMS's phase along axis a at coordinate x. */
-
 /* A TPMS's value and gradient from the phases' sines and cosines in *at
  * (at->p the point), which becomes valid for moves (trig = 1). */
 static int tpms_value_at(const gr_field *f, gr_field_at *at, double *v, double g[3], gr_err *e) {
