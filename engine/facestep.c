@@ -471,10 +471,15 @@ static int stepped_layer(const gr_job *j, const fs_key *k, gr_tlayer **out, gr_e
   if (!differ) return GR_OK;
   gr_tlayer *st = calloc(1, sizeof *st);
   if (!st || !(st->section = gr_rings_new())) { free(st); return gr_fail(e, GR_EMEM, "out of memory"); }
-  st->cut[0] = st->cut[1] = st->cut[2] = st->cut[3] = NAN; /* its box sides lie just inside the windows' */
+  /* its box (just inside the neighbours' windows: gr_fstep_section) is
+   * cut as a window is: the sides are no walls, the section goes on */
+  double m = gr_job_window(j);
+  st->cut[0] = st->cut[1] = -m + INSET;
+  st->cut[2] = j->o.cell[0] + m - INSET;
+  st->cut[3] = j->o.cell[1] + m - INSET;
   const gr_rings *nb[9];
   for (int q = 0; q < 9; q++) nb[q] = k->nb[q] ? k->nb[q]->section : NULL;
-  int rc = gr_fstep_section(j->o.cell, gr_job_window(j), nb, st->section, e);
+  int rc = gr_fstep_section(j->o.cell, m, nb, st->section, e);
   if (rc == GR_EARG) { /* degenerate: keep the template's layer */
     gr_err_clear(e);
     gr_fstep_free(st);

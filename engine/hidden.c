@@ -30,6 +30,15 @@
 #define HID_PROBE 8
 #define HID_LEVELS 2
 #define HID_DEPTH 1e-3
+#define HID_ZERO 1e-9
+
+/* Inside, for the probes: f < 0, or zero (within HID_ZERO). A node on the
+ * boundary takes the solid's side: where a skin's straight side lies on a
+ * grid line and meets the sheet's section, the void between them can have
+ * its corner on a node and lie wholly inside the cell beyond it; marching
+ * squares put both the node's crossings on it and lose the void, and only
+ * probes that take the node as solid find it. */
+static inline int hid_in(double v) { return v <= HID_ZERO; }
 
 /* Does a grid edge of length h, its ends' values va, vb of one sign and
  * one of them within the guard of zero (the scan's classes tell, and
@@ -39,12 +48,12 @@
  * nodes only if |va| + |vb| <= lip h. */
 static inline int edge_suspect(double va, double vb, double vp, double vn, double h, double lip) {
   if (lip > 0 && fabs(va) + fabs(vb) > lip * h) return 0;
-  double s = va < 0 ? 1 : -1; /* s * f rises towards zero */
+  double s = hid_in(va) ? 1 : -1; /* s * f rises towards zero */
   if (s * (2 * va - vp) >= 0 || s * (2 * vb - vn) >= 0) return 1; /* NaN compares false */
   return fabs(va - vb) > HID_JUMP * h;
 }
 
-/* The scan's classes of the nodes, one byte each: bit 0 inside (v < 0),
+/* The scan's classes of the nodes, one byte each: bit 0 inside (hid_in),
  * bit 1 near zero (|v| <= guard; NaN is neither, as in edge_suspect). An
  * edge passes edge_suspect's first test only when its ends share bit 0 and
  * one of them has bit 1: so the candidates are found eight nodes at a time
@@ -56,28 +65,79 @@ static inline int edge_suspect(double va, double vb, double vp, double vn, doubl
 
 /* Probes of the suspect edges, appended in the order of j, i, then the
  * edge along x before the one along y (the points evaluated, and their
- * order, are those of a scan of every node): sign[] of the first node of
- * each edge, S - 1 probes each. */
+ * order, are those of a scan of every node): S - 1 probes along each edge,
+ * then one inside each grid cell beside it not probed yet whose four
+ * corners have the edge's sign, where the nodes' quadratic model of f peaks
+ * (cell_peak). A pore narrower than the grid can lie wholly inside a cell,
+ * and where a sheet's section is nearly level it is shallow: one 20 um
+ * across and a few um deep was missed between the edges' probes, and found
+ * only where something else in the window had the grid refined.
+ * sign[k]: the sign of probe k's nodes. */
 typedef struct probes {
   double *px, *py;
-  int *sign;
-  size_t n, cap, ne, cape;
+  unsigned char *sign, *cell; /* cell: one mark per grid cell, probed */
+  size_t n, cap;
 } probes;
+
+static int grow_probes(probes *p, size_t more) {
+  size_t c1 = p->cap, c2 = p->cap, c3 = p->cap;
+  if (gr_grow(&p->sign, &c1, p->n + more, 1) || gr_grow(&p->px, &c2, p->n + more, sizeof *p->px) ||
+      gr_grow(&p->py, &c3, p->n + more, sizeof *p->py))
+    return GR_EMEM;
+  p->cap = c1 < c2 ? c1 : c2;
+  return GR_OK;
+}
+
+static void add_point(const gr_ms_grid *g, double i, double j, int sign, probes *p) {
+  p->px[p->n] = g->x0 + i * g->hx;
+  p->py[p->n] = g->y0 + j * g->hy;
+  p->sign[p->n++] = (unsigned char)sign;
+}
+
+/* Where in cell (i, j) (its corner's offsets s, t in cells, within
+ * [0, 1]) f's local quadratic model from the 4 x 4 nodes around it peaks
+ * towards the other sign (sg = 1: a maximum, -1: a minimum): a smooth cap
+ * of a pore between the nodes (a sheet's section near its horizontal
+ * tangent) has its deepest point there; the cell's centre where the model
+ * has no such peak or the cell is by the grid's border. */
+static void cell_peak(const gr_ms_grid *g, int i, int j, double sg, double *s, double *t) {
+  *s = *t = 0.5;
+  if (i < 1 || j < 1 || i + 2 >= g->nx || j + 2 >= g->ny) return;
+  size_t nx = (size_t)g->nx;
+  const double *v = g->v + i + nx * j, *u = v + nx, *d = v - nx, *w = u + nx;
+  /* derivatives at the cell's centre, in units of the cell (times sg) */
+  double fx = sg * (v[1] - v[0] + u[1] - u[0]) / 2, fy = sg * (u[0] - v[0] + u[1] - v[1]) / 2;
+  double fxx = sg * (v[-1] - v[0] - v[1] + v[2] + u[-1] - u[0] - u[1] + u[2]) / 4;
+  double fyy = sg * (d[0] - v[0] - u[0] + w[0] + d[1] - v[1] - u[1] + w[1]) / 4;
+  double fxy = sg * (u[1] - u[0] - v[1] + v[0]), det = fxx * fyy - fxy * fxy;
+  if (!(fxx < 0 && det > 0)) return; /* no peak: the cell's sides hold its highest points */
+  double ds = (-fyy * fx + fxy * fy) / det, dt = (fxy * fx - fxx * fy) / det;
+  *s = fmin(fmax(0.5 + ds, 0), 1);
+  *t = fmin(fmax(0.5 + dt, 0), 1);
+}
+
+/* A probe where cell (i, j) may hide a pore (cell_peak) if the cell is on
+ * the grid, not probed yet, and its corners all have the sign (hid_in). */
+static int add_cell(const gr_ms_grid *g, int i, int j, int sign, probes *p) {
+  if (i < 0 || j < 0 || i + 1 >= g->nx || j + 1 >= g->ny || p->cell[i + (size_t)g->nx * j]) return GR_OK;
+  p->cell[i + (size_t)g->nx * j] = 1;
+  const double *v = g->v + i + (size_t)g->nx * j, *u = v + g->nx, c[4] = {v[0], v[1], u[0], u[1]};
+  for (int k = 0; k < 4; k++)
+    if (hid_in(c[k]) != sign) return GR_OK;
+  if (grow_probes(p, 1)) return GR_EMEM;
+  double s, t;
+  cell_peak(g, i, j, sign ? 1 : -1, &s, &t);
+  add_point(g, i + s, j + t, sign, p);
+  return GR_OK;
+}
 
 static int add_probes(const gr_ms_grid *g, int i, int j, int dir, probes *p) {
   const int S = HID_PROBE, di = dir == 0, dj = dir == 1;
-  size_t c1 = p->cape, c2 = p->cap, c3 = p->cap;
-  if (gr_grow(&p->sign, &c1, p->ne + 1, sizeof *p->sign) || gr_grow(&p->px, &c2, p->n + S, sizeof *p->px) ||
-      gr_grow(&p->py, &c3, p->n + S, sizeof *p->py))
-    return GR_EMEM;
-  p->cape = c1;
-  p->cap = c2;
-  p->sign[p->ne++] = g->v[i + (size_t)g->nx * j] < 0;
-  for (int a = 1; a < S; a++) {
-    p->px[p->n] = g->x0 + (i + di * (double)a / S) * g->hx;
-    p->py[p->n++] = g->y0 + (j + dj * (double)a / S) * g->hy;
-  }
-  return GR_OK;
+  int sign = hid_in(g->v[i + (size_t)g->nx * j]);
+  if (grow_probes(p, S)) return GR_EMEM;
+  for (int a = 1; a < S; a++) add_point(g, i + di * (double)a / S, j + dj * (double)a / S, sign, p);
+  int rc = add_cell(g, i, j, sign, p);
+  return rc ? rc : add_cell(g, i - dj, j - di, sign, p);
 }
 
 /* The nodes within the box (NULL: all): xin[i], yin[j] mark the columns
@@ -107,13 +167,16 @@ static int scan_edges(const gr_ms_grid *g, double lip, const double *box, double
   int nx = g->nx, ny = g->ny, r[4];
   size_t nn = (size_t)nx * ny;
   unsigned char *cls = malloc(nn + (size_t)nx + 8 + (size_t)nx + (size_t)ny), *xin = cls + nn + nx + 8, *yin = xin + nx;
-  if (!cls) return GR_EMEM;
+  if (!cls || !(p->cell = calloc(nn, 1))) {
+    free(cls);
+    return GR_EMEM;
+  }
   box_range(g, box, xin, yin, r);
   /* the rows read: j0 .. j1 + 1; past the last row nx + 8 zero bytes (no
    * node near) stand for the row above it and for words read past its end */
   int jr1 = r[3] + 1 < ny ? r[3] + 1 : ny - 1;
   for (size_t k = (size_t)nx * r[2]; k < (size_t)nx * (jr1 + 1); k++)
-    cls[k] = (unsigned char)((g->v[k] < 0) | (fabs(g->v[k]) <= guard) << 1);
+    cls[k] = (unsigned char)(hid_in(g->v[k]) | (fabs(g->v[k]) <= guard) << 1);
   memset(cls + nn, 0, (size_t)nx + 8);
   int rc = GR_OK;
   for (int j = r[2]; j <= r[3] && !rc; j++) {
@@ -151,28 +214,30 @@ static int scan_edges(const gr_ms_grid *g, double lip, const double *box, double
     }
   }
   free(cls);
+  free(p->cell);
+  p->cell = NULL;
   return rc;
 }
 
 /* *hidden = 1 if a probe between two nodes of one sign has the other sign. */
 static int hidden_boundary(const gr_ms_grid *g, double lip, const double *box, gr_slice_fn fn, void *ud, int *hidden,
                            gr_err *e) {
-  const int S = HID_PROBE;
   double guard = HID_GUARD * hypot(g->hx, g->hy);
   if (lip > 0) guard = fmin(guard, lip * fmax(g->hx, g->hy));
   probes p = {0};
   double *pv = NULL;
   *hidden = 0;
   int rc = scan_edges(g, lip, box, guard, &p);
-  if (rc) rc = gr_fail(e, GR_EMEM, "out of memory probing %zu grid edges", p.ne);
-  if (!rc && p.n && !(pv = malloc(p.n * sizeof *pv))) rc = gr_fail(e, GR_EMEM, "out of memory probing %zu grid edges", p.ne);
+  if (rc) rc = gr_fail(e, GR_EMEM, "out of memory probing %zu points between grid nodes", p.n);
+  if (!rc && p.n && !(pv = malloc(p.n * sizeof *pv)))
+    rc = gr_fail(e, GR_EMEM, "out of memory probing %zu points between grid nodes", p.n);
   if (!rc && p.n) rc = gr_ms_eval(fn, ud, p.n, p.px, p.py, pv, e);
   /* the other sign by more than HID_DEPTH (1 um): a void (or solid) that
    * shallow is under about 2 um wide, and fields that differ in the last
    * digits (shared closest points or not) must not decide differently on
    * it (the finer grid moves contours elsewhere within the chord tolerance) */
   for (size_t k = 0; !rc && k < p.n && !*hidden; k++)
-    *hidden = p.sign[k / (size_t)(S - 1)] ? pv[k] > HID_DEPTH : pv[k] < -HID_DEPTH;
+    *hidden = p.sign[k] ? pv[k] > HID_DEPTH : pv[k] < -HID_DEPTH;
   free(p.px); free(p.py); free(pv); free(p.sign);
   return rc;
 }

@@ -78,11 +78,14 @@ void gr_sha256_hex(const void *data, size_t n, char out[65]);
  * nodes' cubic (contours move within the chord tolerance, 2026-11-29), 21
  * since the window's cut sides move out by b (2b) and the window reaches a
  * skin's deepest contour (its margin is in the signature), 22 for a
- * narrower window, 23 since that is undone (2026-11-29).
+ * narrower window, 23 since that is undone (2026-11-29), 24 since sections
+ * probe inside grid cells for pores (their corners on nodes too) and the
+ * narrower window is back (b + (n - 1) d, at least 2b, and two cells; face
+ * steps and grid offsets treat a cut's sides as no walls, 2026-11-29).
  * A template whose
  * signature begins otherwise was built under an older rule: its key is never
  * asked for again, `gradus kb list` marks it stale and prune removes it. */
-#define GR_TEMPLATE_GEOMETRY "{gradus_template: 23, grading: voxel-owned,"
+#define GR_TEMPLATE_GEOMETRY "{gradus_template: 24, grading: voxel-owned,"
 /* 1 when a signature is a Gradus template's of an older engine geometry
  * (it begins with "{gradus_template: " but not with GR_TEMPLATE_GEOMETRY). */
 int gr_kb_stale(const char *signature);

@@ -19,6 +19,8 @@ typedef struct poly_dist {
   double b;             /* offset distance, mm: fn returns sd + b */
   const gr_ms_grid *grid; /* sampled sd + b (signs exact, |sd| a lower bound), or NULL */
   struct pd_seen *seen; /* pd_fn's and pd_gfn's edge marks, or NULL */
+  unsigned char *cut;   /* per edge: 1 along a window's cut (pd_mark_cut), or NULL */
+  double cut_far;       /* a cut edge's distance counts this much more (mm) */
 } poly_dist;
 
 /* Marks of the edges one search has measured. An edge is listed in every
@@ -35,7 +37,7 @@ typedef struct pd_seen {
 } pd_seen;
 
 static void pd_free(poly_dist *d) {
-  free(d->ab); free(d->bstart); free(d->bedge); free(d->bb);
+  free(d->ab); free(d->bstart); free(d->bedge); free(d->bb); free(d->cut);
 }
 
 /* fmin and fmax inline, bit for bit as glibc returns them (the first
@@ -79,6 +81,7 @@ static inline int pd_visit(const poly_dist *d, pd_seen *seen, unsigned id, size_
       seen->mark[ed] = id;
     }
     double t, d2 = edge_d2(d->ab + 4 * ed, x, y, &t);
+    if (d->cut && d->cut[ed]) d2 = (sqrt(d2) + d->cut_far) * (sqrt(d2) + d->cut_far);
     if (d2 < *best) { *best = d2; *edge = ed; *tpar = t; }
     if (mode == PD_ANY && sqrt(d2) <= rmax) { *best = d2; return 1; }
   }
@@ -334,6 +337,32 @@ static int pd_build(poly_dist *d, const gr_rings *r, double bs, gr_err *e) {
   return GR_OK;
 }
 
+/* A template's section is cut to a window whose sides are no walls (the
+ * section goes on beyond them): the edges lying along a side of cut (x0 y0
+ * x1 y1, to 1e-8 mm) are marked, and their distance counts far more (all
+ * but a thousandth of b), so that the offset by b runs along the side
+ * instead of b inside it (a strip of width b there, narrower than the
+ * coarse grid, would have the strip search sample the grid again at one
+ * cell); the grid's nodes on the side, whose sign is the even-odd rule's
+ * on an edge, are outside either way. 0, or -1 out of memory. */
+static int pd_mark_cut(poly_dist *d, const double *cut, double b) {
+  d->cut_far = b * (1 - 1e-3);
+  size_t n = 0;
+  if (!cut || d->ne == 0) return 0;
+  if (!(d->cut = calloc(d->ne, 1))) return -1;
+  for (size_t ed = 0; ed < d->ne; ed++) {
+    const double *a = d->ab + 4 * ed;
+    for (int c = 0; c < 4 && !d->cut[ed]; c++)
+      d->cut[ed] = fabs(a[c & 1] - cut[c]) <= 1e-8 && fabs(a[2 + (c & 1)] - cut[c]) <= 1e-8;
+    n += d->cut[ed];
+  }
+  if (n == 0) {
+    free(d->cut);
+    d->cut = NULL;
+  }
+  return 0;
+}
+
 static int cmp_double(const void *a, const void *b) {
   double x = *(const double *)a, y = *(const double *)b;
   return x < y ? -1 : x > y;
@@ -444,9 +473,11 @@ static void pd_sample_edge(const double *p, const gr_ms_grid *g, const double *x
 }
 
 /* The same for an edge whose L2 is 0 or not finite (edge_d2's t is 0 or
- * NaN there): the plain expression over the whole box. */
+ * NaN there), and for an edge along a window's cut, whose distance counts
+ * far more (pd_mark_cut; 0 otherwise): the plain expression over the whole
+ * box. */
 static void pd_sample_edge_plain(const double *p, const gr_ms_grid *g, const double *xn, int i0, int i1, int j0,
-                                 int j1, double *v) {
+                                 int j1, double far, double *v) {
   double ex = p[2] - p[0], ey = p[3] - p[1], L2 = ex * ex + ey * ey;
   for (int j = j0; j <= j1; j++) {
     double y = g->y0 + j * g->hy;
@@ -456,6 +487,7 @@ static void pd_sample_edge_plain(const double *p, const gr_ms_grid *g, const dou
       double t = L2 > 0 ? ((x - p[0]) * ex + (y - p[1]) * ey) / L2 : 0;
       t = t < 0 ? 0 : t > 1 ? 1 : t;
       double qx = p[0] + t * ex - x, qy = p[1] + t * ey - y, d2 = qx * qx + qy * qy;
+      if (far > 0) d2 = (sqrt(d2) + far) * (sqrt(d2) + far);
       if (d2 < row[i]) row[i] = d2;
     }
   }
@@ -501,8 +533,9 @@ static int pd_sample(const poly_dist *d, const gr_ms_grid *g, double *v,
     if (j0 < 0) j0 = 0;
     if (i1 > g->nx - 1) i1 = g->nx - 1;
     if (j1 > g->ny - 1) j1 = g->ny - 1;
-    if (L2 > 0 && isfinite(L2) && isfinite(rr)) pd_sample_edge(p, g, xn, i0, i1, j0, j1, rr, v);
-    else pd_sample_edge_plain(p, g, xn, i0, i1, j0, j1, v);
+    int far = d->cut && d->cut[ed];
+    if (!far && L2 > 0 && isfinite(L2) && isfinite(rr)) pd_sample_edge(p, g, xn, i0, i1, j0, j1, rr, v);
+    else pd_sample_edge_plain(p, g, xn, i0, i1, j0, j1, far ? d->cut_far : 0, v);
   }
   /* signs by scan-line parity */
   double r2 = rmax * rmax;
@@ -680,6 +713,7 @@ static int offset_rings(const gr_rings *in, double b, double cell, double coarse
   rc = bbox_grid(src, coarse * cell, &g, e);
   if (rc) { gr_rings_free(src); return rc; }
   rc = pd_build(&d, src, fmax(g.hx, g.hy), e);
+  if (!rc && pd_mark_cut(&d, cut, b)) rc = gr_fail(e, GR_EMEM, "out of memory: %zu edges", d.ne);
   d.b = b;
   pd_seen seen;
   if (!rc) d.seen = pd_seen_new(&d, &seen);

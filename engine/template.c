@@ -243,13 +243,17 @@ static int verify_template_layer(const gr_job_opts *o, gr_tlayer *tl, double ang
 }
 
 /* Margin of a template's slice window around the voxel: whole grid cells,
- * wide enough for the contours and hatch region of the voxel's edge (b +
- * (contours + 1) d + 2h), and for the deepest contour along a skin (b +
- * (deep - 1) d + 2h) where a region scans more. */
+ * wide enough for what the voxel's layer takes from the section beyond its
+ * sides: the deepest offset (the last contour or the hatch region, b + (n -
+ * 1) d, n the most contours scanned along a boundary: the job's, or a
+ * skin's) and a thin wall's far side (its centre line is scanned within b
+ * of the voxel, its sides within 2b), and two cells for the grid's
+ * crossings and chords by the window's border. */
 double gr_tmpl_window(const gr_job_opts *o, int deep) {
-  double h = o->slice_cell, d = o->hatch;
-  double far = o->beam_offset + fmax((o->contours + 1) * d, (deep - 1) * d);
-  return ceil((far + 2 * h) / h) * h;
+  double h = o->slice_cell, b = o->beam_offset;
+  int n = deep > o->contours ? deep : o->contours;
+  double far = b + (n > 1 ? n - 1 : 0) * o->hatch;
+  return ceil((fmax(far, 2 * b) + 2 * h) / h - 1e-9) * h;
 }
 
 /* Contour, thin-wall and hatch-region options of the templates. */
