@@ -133,9 +133,16 @@ static int add_cell(const gr_ms_grid *g, int i, int j, int sign, probes *p) {
 
 static int add_probes(const gr_ms_grid *g, int i, int j, int dir, probes *p) {
   const int S = HID_PROBE, di = dir == 0, dj = dir == 1;
-  int sign = hid_in(g->v[i + (size_t)g->nx * j]);
-  if (grow_probes(p, S)) return GR_EMEM;
-  for (int a = 1; a < S; a++) add_point(g, i + di * (double)a / S, j + dj * (double)a / S, sign, p);
+  double va = g->v[i + (size_t)g->nx * j], vb = g->v[i + di + (size_t)g->nx * (j + dj)];
+  int sign = hid_in(va);
+  /* an edge from a node on the boundary: only the cells beside it (a void
+   * with its corner on the node lies inside one; along a grid line of such
+   * nodes the edges' probes would be many and find nothing the cells'
+   * do not) */
+  if (fabs(va) > HID_ZERO && fabs(vb) > HID_ZERO) {
+    if (grow_probes(p, S)) return GR_EMEM;
+    for (int a = 1; a < S; a++) add_point(g, i + di * (double)a / S, j + dj * (double)a / S, sign, p);
+  }
   int rc = add_cell(g, i, j, sign, p);
   return rc ? rc : add_cell(g, i - dj, j - di, sign, p);
 }
