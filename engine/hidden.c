@@ -11,7 +11,9 @@
  * continuation of the edge before it (f's slope there) reaches the other
  * sign within the edge, from either end, or the ends jump (differ by more
  * than HID_JUMP times the edge). Those edges are probed at HID_PROBE - 1
- * points between their ends; if a probe has the other sign, the window is
+ * points between their ends, and the cells beside them once inside (a pore
+ * can lie wholly inside a cell: see struct probes); if a probe has the
+ * other sign, the window is
  * sampled again twice as fine, and again (up to HID_LEVELS times) while
  * probes of the finer grid still find one; it is contoured on the last grid
  * (the chord pass then follows the feature to its end). Where f is straight
