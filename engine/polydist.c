@@ -68,6 +68,13 @@ static int pd_kmax(const poly_dist *d, double rmax, int cap) {
   return kmax > cap ? cap : kmax;
 }
 
+/* A squared distance d2 to an edge along a window's cut, counted far more
+ * (pd_mark_cut's cut_far). */
+static inline double pd_far_d2(double d2, double far) {
+  double r = sqrt(d2) + far;
+  return r * r;
+}
+
 /* Measure the edges listed in buckets ka..kb - 1 (consecutive buckets of one
  * row: the CSR lists their edges one bucket after the other, as a walk over
  * the buckets would meet them) against the best so far. Returns 1 when
@@ -81,7 +88,7 @@ static inline int pd_visit(const poly_dist *d, pd_seen *seen, unsigned id, size_
       seen->mark[ed] = id;
     }
     double t, d2 = edge_d2(d->ab + 4 * ed, x, y, &t);
-    if (d->cut && d->cut[ed]) d2 = (sqrt(d2) + d->cut_far) * (sqrt(d2) + d->cut_far);
+    if (d->cut && d->cut[ed]) d2 = pd_far_d2(d2, d->cut_far);
     if (d2 < *best) { *best = d2; *edge = ed; *tpar = t; }
     if (mode == PD_ANY && sqrt(d2) <= rmax) { *best = d2; return 1; }
   }
@@ -487,7 +494,7 @@ static void pd_sample_edge_plain(const double *p, const gr_ms_grid *g, const dou
       double t = L2 > 0 ? ((x - p[0]) * ex + (y - p[1]) * ey) / L2 : 0;
       t = t < 0 ? 0 : t > 1 ? 1 : t;
       double qx = p[0] + t * ex - x, qy = p[1] + t * ey - y, d2 = qx * qx + qy * qy;
-      if (far > 0) d2 = (sqrt(d2) + far) * (sqrt(d2) + far);
+      if (far > 0) d2 = pd_far_d2(d2, far);
       if (d2 < row[i]) row[i] = d2;
     }
   }
