@@ -28,7 +28,7 @@ int gr_hatch_miter_offset(const gr_rings *in, double b, double cell, const doubl
     double a0 = gr_ring_area(in, r);
     size_t s0 = out->npts;
     for (size_t i = 0; i < n; i++) {
-      size_t h = (i + n - 1) % n, j = (i + 1) % n;
+      size_t h = gr_ring_prev(i, n), j = gr_ring_next(i, n);
       double ax = p[2 * i] - p[2 * h], ay = p[2 * i + 1] - p[2 * h + 1];
       double bx = p[2 * j] - p[2 * i], by = p[2 * j + 1] - p[2 * i + 1];
       double la = hypot(ax, ay), lb = hypot(bx, by);
@@ -430,7 +430,7 @@ typedef struct core_edges {
 } core_edges;
 
 static int core_edge_within(const core_edges *c, size_t g, const double *p, double r) {
-  return gr_seg_dist(p, c->r->xy + 2 * g, c->r->xy + 2 * c->nxt[g]) <= r;
+  return gr_seg_dist2(p, c->r->xy + 2 * g, c->r->xy + 2 * c->nxt[g]) <= r * r;
 }
 
 /* Whether one of the core edges near the hint (CORE_TRY) is within r of p
@@ -440,7 +440,8 @@ static int core_edge_within(const core_edges *c, size_t g, const double *p, doub
 static int core_near_hint(core_edges *c, const double *p, const double *q, double r) {
   size_t n = c->r->npts;
   for (size_t k = 0; k < sizeof CORE_TRY / sizeof *CORE_TRY && n; k++) {
-    size_t g = (c->hint + n + (size_t)(ptrdiff_t)CORE_TRY[k]) % n;
+    size_t g = c->hint + n + (size_t)(ptrdiff_t)CORE_TRY[k];
+    while (g >= n) g -= n; /* (hint < n, |CORE_TRY| <= 2: no division) */
     if (core_edge_within(c, g, p, r) && (!q || core_edge_within(c, g, q, r))) return c->hint = g, 1;
   }
   return 0;
@@ -489,7 +490,7 @@ static int all_covered(const gr_rings *sec, const gr_rings *core, double b, doub
     const double *p = gr_ring_xy(sec, i);
     size_t n = gr_ring_len(sec, i);
     for (size_t a = 0; a < n && ok >= 0; a++) {
-      const double *q = p + 2 * ((a + 1) % n);
+      const double *q = p + 2 * gr_ring_next(a, n);
       if (core_near_hint(&c, p + 2 * a, q, r)) continue;
       int m = (int)ceil(gr_len2d(q[0] - p[2 * a], q[1] - p[2 * a + 1]) / tol);
       for (int k = 0; k < m; k++) {

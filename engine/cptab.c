@@ -519,9 +519,13 @@ static int node_values(const gr_cptab *t, int q, const gr_field *f, double band,
    * template time on eq. (8) sheets and changed no layer of the iwp sheet's
    * measurement, doc/quality.md: not done.) */
   double lim = 2 * herr;
+  /* a node nearer to H than its reach keeps its closest point under the
+   * check (gr_offset_strict returns at once): not looked up (the checks'
+   * cache is shared by the group and large: its reads missed the cache) */
+  double reach = gr_offset_reach(t->field);
   for (size_t n = 0; n < nn && !rc; n++) {
     while (n < nn && !(fabs(v[n]) < lim)) n++; /* most nodes: one test */
-    if (n == nn || isnan(Q[3 * n]) || fabs(sd[n]) > band) continue;
+    if (n == nn || isnan(Q[3 * n]) || fabs(sd[n]) > band || fabs(sd[n]) < reach) continue;
     double qk[3], sdk, off[3];
     size_t k;
     node_shift(t, nx, sh, n, &k, off);

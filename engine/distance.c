@@ -726,6 +726,11 @@ double gr_offset_herr(const gr_field *f_) {
   return f ? f->herr : -1;
 }
 
+double gr_offset_reach(const gr_field *f_) {
+  const offset *f = gr_field_callback_data(f_, offset_eval);
+  return f && f->mode == GR_DIST_EXACT ? f->reach : 0;
+}
+
 /* Whether a thickness expression (NULL: none) uses none of x, y, z, u, v, w:
  * T is then the same everywhere (the density table maps it to one value). */
 static int expr_constant(const gr_expr *x) {

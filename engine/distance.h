@@ -106,6 +106,10 @@ void gr_offset_implied_thickness(const gr_field *f, size_t n, const double *sd, 
 /* H's error bound of offset field f (half a mesh spacing, mm), or -1 when
  * f is not one. */
 double gr_offset_herr(const gr_field *f);
+/* H's reach (mm): a point nearer to H than this has one closest point, and
+ * the strict check (gr_offset_strict) keeps it. 0 in mesh mode or when f is
+ * not an offset field. */
+double gr_offset_reach(const gr_field *f);
 /* Below what distance from q (a point of H) a point along q's normal (either
  * side) keeps q as its closest point (mm): H's reach, or the larger local
  * reach at q (fields made with `periodic`, and those sharing their H; the

@@ -8,6 +8,7 @@
 #include <lauxlib.h>
 #include <lua.h>
 #include <lualib.h>
+#include <malloc.h>
 #include <readline/history.h>
 #include <readline/readline.h>
 #include <signal.h>
@@ -229,7 +230,19 @@ static int pmain(lua_State *L) {
   return 1;
 }
 
+/* Each template layer allocates its slice grid's scratch (about 0.5 MB at
+ * the defaults) and frees it; by default glibc hands such blocks back to
+ * the kernel between layers (mmap, or trimming the heap's top), and every
+ * layer faults the pages in again, zeroed. Kept up to these sizes, they
+ * are reused: on an 8 x 8 x 8 continuously graded part, 150,000 minor page
+ * faults became 68,000 and system time 0.43 s became 0.15 s (peak RSS +17 MB). */
+static void malloc_keep(void) {
+  mallopt(M_MMAP_THRESHOLD, 16 << 20);
+  mallopt(M_TRIM_THRESHOLD, 64 << 20);
+}
+
 int main(int argc, char **argv) {
+  malloc_keep();
   host_limits lim; /* outlives the state: closed below */
   memset(&lim, 0, sizeof lim);
   lua_State *L = lua_newstate(h_alloc, &lim);

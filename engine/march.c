@@ -488,16 +488,16 @@ static int chord_newton(gr_slice_grad_fn gfn, void *ud, double tol, double chord
                         double *ax, double *ay, double *bx, double *by, size_t *seg, size_t *m,
                         const unsigned char *must, int *ins, double *ipt, size_t *nins, gr_err *e) {
   size_t n = *m;
-  double *mx = malloc(n * sizeof *mx), *my = malloc(n * sizeof *my), *t = calloc(n, sizeof *t);
-  double *qx = malloc(n * sizeof *qx), *qy = malloc(n * sizeof *qy), *f = malloc(n * sizeof *f);
-  double *gx = malloc(n * sizeof *gx), *gy = malloc(n * sizeof *gy), *hl = malloc(n * sizeof *hl);
-  size_t *act = malloc(n * sizeof *act);
-  unsigned char *left = calloc(n, 1); /* 1: bracket it */
+  double *mx = malloc((9 * n + 1) * sizeof *mx); /* mx, my, t, qx, qy, f, gx, gy, hl */
+  size_t *act = malloc(n * sizeof *act + 1);
+  unsigned char *left = calloc(n + 1, 1); /* 1: bracket it */
   int rc = GR_OK;
-  if (!mx || !my || !t || !qx || !qy || !f || !gx || !gy || !hl || !act || !left) {
+  if (!mx || !act || !left) {
     rc = gr_fail(e, GR_EMEM, "out of memory refining chords");
     goto done;
   }
+  double *my = mx + n, *t = my + n, *qx = t + n, *qy = qx + n, *f = qy + n, *gx = f + n, *gy = gx + n, *hl = gy + n;
+  memset(t, 0, n * sizeof *t);
   size_t na = n;
   for (size_t k = 0; k < n; k++) {
     mx[k] = 0.5 * (ax[k] + bx[k]);
@@ -548,7 +548,7 @@ static int chord_newton(gr_slice_grad_fn gfn, void *ud, double tol, double chord
   }
   *m = q;
 done:
-  free(mx); free(my); free(t); free(qx); free(qy); free(f); free(gx); free(gy); free(hl); free(act); free(left);
+  free(mx); free(act); free(left);
   return rc;
 }
 
@@ -574,7 +574,7 @@ void gr_ms_chord_corner(const double *p0, const double *a, const double *b, cons
 static void chord_corner_of(const gr_rings *r, size_t i, size_t g, double c[2]) {
   size_t len = gr_ring_len(r, i), k = g - r->start[i];
   const double *p = gr_ring_xy(r, i);
-  gr_ms_chord_corner(p + 2 * ((k + len - 1) % len), p + 2 * k, p + 2 * ((k + 1) % len), p + 2 * ((k + 2) % len), c);
+  gr_ms_chord_corner(p + 2 * gr_ring_prev(k, len), p + 2 * k, p + 2 * gr_ring_next(k, len), p + 2 * gr_ring_next(gr_ring_next(k, len), len), c);
 }
 
 /* Chords whose bracket (+-half the chord along the normal) has one sign at
@@ -682,7 +682,7 @@ int gr_ms_seg_cross(const double *a, const double *b, const double *c, const dou
 #define CORNER_NEAR 6
 static int corner_ok(const gr_rings *r, size_t i, size_t k, const double *R, double chord_tol) {
   size_t len = gr_ring_len(r, i);
-  const double *p = gr_ring_xy(r, i), *A = p + 2 * k, *B = p + 2 * ((k + 1) % len);
+  const double *p = gr_ring_xy(r, i), *A = p + 2 * k, *B = p + 2 * gr_ring_next(k, len);
   if (gr_len2d(R[0] - A[0], R[1] - A[1]) <= chord_tol || gr_len2d(R[0] - B[0], R[1] - B[1]) <= chord_tol) return 0;
   long span = (long)len / 2 < CORNER_NEAR ? (long)len / 2 : CORNER_NEAR;
   for (long j = -span; j <= span; j++) {
@@ -693,17 +693,21 @@ static int corner_ok(const gr_rings *r, size_t i, size_t k, const double *R, dou
   return 1;
 }
 
-/* The sagitta of chord a-b on the circle through p, a and b (0 when they
- * are collinear, INFINITY when the chord does not fit the circle or two
- * points coincide). */
-static double circle_sagitta(const double *p, const double *a, const double *b) {
+/* Whether the sagitta of chord a-b on the circle through p, a and b is at
+ * most s > 0 (yes when they are collinear; no when two points coincide).
+ * The sagitta of a chord of length L on a circle of radius R,
+ * R - sqrt(R^2 - L^2 / 4), is at most s exactly when
+ * R >= K = (L^2 / 4 + s^2) / (2 s) (K >= L / 2: the chord fits); with the
+ * circumradius R = |u| |v| L / (2 |u x v|) (u, v: from p to a and b) that
+ * is |u|^2 |v|^2 L^2 >= 4 (u x v)^2 K^2, without a root or a division by
+ * the points. */
+static int circle_within(const double *p, const double *a, const double *b, double s) {
   double ux = a[0] - p[0], uy = a[1] - p[1], vx = b[0] - p[0], vy = b[1] - p[1];
   double wx = b[0] - a[0], wy = b[1] - a[1], L2 = wx * wx + wy * wy;
-  double den = sqrt((ux * ux + uy * uy) * (vx * vx + vy * vy) * L2), cr = fabs(ux * vy - uy * vx);
-  if (!(den > 0)) return INFINITY;
-  if (cr == 0) return 0;
-  double R = den / (2 * cr), q = R * R - 0.25 * L2; /* the circumradius */
-  return q > 0 ? 0.25 * L2 / (R + sqrt(q)) : INFINITY;
+  double den2 = (ux * ux + uy * uy) * (vx * vx + vy * vy) * L2, cr = ux * vy - uy * vx;
+  if (!(den2 > 0)) return 0;
+  double K = (0.25 * L2 + s * s) / (2 * s);
+  return den2 >= 4 * cr * cr * K * K;
 }
 
 /* Whether the chord from point k of ring i lies within chord_tol / 2 of a
@@ -716,10 +720,11 @@ static int chord_fine_by_circles(const gr_rings *r, size_t i, size_t k, double c
   size_t len = gr_ring_len(r, i);
   if (len < 4) return 0;
   const double *P = gr_ring_xy(r, i);
-  const double *p = P + 2 * ((k + len - 1) % len), *a = P + 2 * k;
-  const double *b = P + 2 * ((k + 1) % len), *c = P + 2 * ((k + 2) % len);
+  const double *p = P + 2 * gr_ring_prev(k, len), *a = P + 2 * k;
+  size_t kn = gr_ring_next(k, len);
+  const double *b = P + 2 * kn, *c = P + 2 * gr_ring_next(kn, len);
   if (on_border(w, p, a) || on_border(w, b, c)) return 0;
-  return circle_sagitta(p, a, b) <= 0.5 * chord_tol && circle_sagitta(a, b, c) <= 0.5 * chord_tol;
+  return circle_within(p, a, b, 0.5 * chord_tol) && circle_within(a, b, c, 0.5 * chord_tol);
 }
 
 /* Chord accuracy passes: for each ring segment not yet checked (*okp[i] = 0
@@ -738,23 +743,22 @@ static int chord_passes(gr_rings *r, unsigned char **okp, const unsigned char *m
     size_t n = r->npts;
     /* per candidate chord: bracket ends a, b (+-half the chord along the
      * outward normal through the midpoint) and its first point's index */
-    double *ax = malloc(n * sizeof *ax + 1), *ay = malloc(n * sizeof *ay + 1);
-    double *bx = malloc(n * sizeof *bx + 1), *by = malloc(n * sizeof *by + 1);
-    double *fa = malloc(n * sizeof *fa + 1), *fb = malloc(n * sizeof *fb + 1);
-    double *A = malloc(2 * n * sizeof *A + 1), *B = malloc(2 * n * sizeof *B + 1);
-    double *root = malloc(2 * n * sizeof *root + 1), *ipt = malloc(2 * n * sizeof *ipt + 1);
-    double *cm = malloc(2 * n * sizeof *cm + 1); /* chord midpoints, by first point */
-    double *cn = malloc(2 * n * sizeof *cn + 1); /* chord normals */
+    /* the pass's arrays carved from three blocks (ins and viac zeroed) */
+    double *blk = malloc((6 * n + 6 * 2 * n + 1) * sizeof *blk);
+    size_t *zs = malloc((2 * n + 1) * sizeof *zs);
     int *ins = calloc(n + 1, sizeof *ins);
-    size_t *seg = malloc(n * sizeof *seg + 1);
-    size_t *rof = malloc(n * sizeof *rof + 1); /* ring of each point */
-    unsigned char *viac = calloc(n + 1, 1);     /* bracketed towards a corner */
+    unsigned char *viac = calloc(n + 1, 1); /* bracketed towards a corner */
     unsigned char *ok2 = NULL;
     size_t nins = 0;
-    if (!ax || !ay || !bx || !by || !fa || !fb || !A || !B || !root || !ipt || !ins || !seg || !cm || !cn || !rof || !viac) {
+    if (!blk || !zs || !ins || !viac) {
       rc = gr_fail(e, GR_EMEM, "out of memory refining chords");
       goto pass_done;
     }
+    double *ax = blk, *ay = ax + n, *bx = ay + n, *by = bx + n, *fa = by + n, *fb = fa + n;
+    double *A = fb + n, *B = A + 2 * n, *root = B + 2 * n, *ipt = root + 2 * n;
+    double *cm = ipt + 2 * n; /* chord midpoints, by first point */
+    double *cn = cm + 2 * n;  /* chord normals */
+    size_t *seg = zs, *rof = zs + n; /* rof: ring of each point */
     size_t m = 0;
     for (size_t i = 0; i < r->nrings; i++) {
       size_t len = gr_ring_len(r, i), st = r->start[i];
@@ -762,7 +766,7 @@ static int chord_passes(gr_rings *r, unsigned char **okp, const unsigned char *m
       for (size_t k = 0; k < len; k++) rof[st + k] = i;
       for (size_t k = 0; k < len; k++) {
         if (ok[st + k]) continue;
-        const double *a = p + 2 * k, *b = p + 2 * ((k + 1) % len);
+        const double *a = p + 2 * k, *b = p + 2 * gr_ring_next(k, len);
         if (on_border(w, a, b)) continue;
         double dx = b[0] - a[0], dy = b[1] - a[1], L = gr_len2d(dx, dy);
         if (L <= 2 * chord_tol) continue;
@@ -848,8 +852,7 @@ static int chord_passes(gr_rings *r, unsigned char **okp, const unsigned char *m
       }
     }
   pass_done:
-    free(ax); free(ay); free(bx); free(by); free(fa); free(fb); free(A); free(B);
-    free(root); free(ipt); free(ins); free(seg); free(ok2); free(cm); free(cn); free(rof); free(viac);
+    free(blk); free(zs); free(ins); free(viac); free(ok2);
     if (rc || nins == 0) {
       /* the last pass checked every chord still unchecked and inserted
        * nothing: all are checked now (a later call checks only new ones) */
@@ -892,7 +895,7 @@ static int corner_marks(const gr_rings *r, unsigned char *ok, unsigned char *mus
     size_t len = gr_ring_len(r, i), st = r->start[i];
     const double *p = gr_ring_xy(r, i);
     for (size_t k = 0; k < len && len >= 3 && !rc; k++) {
-      size_t kp = (k + len - 1) % len, kn = (k + 1) % len;
+      size_t kp = gr_ring_prev(k, len), kn = gr_ring_next(k, len);
       const double *P = p + 2 * kp, *T = p + 2 * k, *N = p + 2 * kn;
       double ux = T[0] - P[0], uy = T[1] - P[1], vx = N[0] - T[0], vy = N[1] - T[1], dot = ux * vx + uy * vy;
       /* most vertices turn far less than 15 degrees: seen from the squares

@@ -112,7 +112,7 @@ static void lines_meet(const oedge *f, oedge *g, double cr) {
 static int edges_init(const double *p, size_t n, double b, double tol, const double *cut, oedge *E) {
   for (size_t k = 0; k < n; k++) {
     oedge *g = E + k;
-    const double *q = p + 2 * ((k + 1) % n);
+    const double *q = p + 2 * gr_ring_next(k, n);
     double dx = q[0] - p[2 * k], dy = q[1] - p[2 * k + 1], L = gr_len2d(dx, dy);
     g->p[0] = p[2 * k]; g->p[1] = p[2 * k + 1];
     g->u[0] = dx / L; g->u[1] = dy / L;
@@ -120,8 +120,8 @@ static int edges_init(const double *p, size_t n, double b, double tol, const dou
     g->cut = on_cut(cut, p + 2 * k, q);
     double sh = g->cut ? -CUT_OUT * b : b;
     g->a[0] = g->p[0] + sh * g->n[0]; g->a[1] = g->p[1] + sh * g->n[1];
-    g->prev = (int)((k + n - 1) % n);
-    g->next = (int)((k + 1) % n);
+    g->prev = (int)gr_ring_prev(k, n);
+    g->next = (int)gr_ring_next(k, n);
   }
   for (size_t k = 0; k < n; k++) {
     oedge *g = E + k;
@@ -242,8 +242,9 @@ static int seg_meet(const double *a0, const double *a1, const double *b0, const 
     return 0; /* boxes apart */
   double o1 = orient(a0, a1, b0), o2 = orient(a0, a1, b1), o3 = orient(b0, b1, a0), o4 = orient(b0, b1, a1);
   if (((o1 < 0 && o2 > 0) || (o1 > 0 && o2 < 0)) && ((o3 < 0 && o4 > 0) || (o3 > 0 && o4 < 0))) return 1;
-  return gr_seg_dist(b0, a0, a1) < DIRECT_EPS || gr_seg_dist(b1, a0, a1) < DIRECT_EPS ||
-         gr_seg_dist(a0, b0, b1) < DIRECT_EPS || gr_seg_dist(a1, b0, b1) < DIRECT_EPS;
+  double e2 = DIRECT_EPS * DIRECT_EPS;
+  return gr_seg_dist2(b0, a0, a1) < e2 || gr_seg_dist2(b1, a0, a1) < e2 || gr_seg_dist2(a0, b0, b1) < e2 ||
+         gr_seg_dist2(a1, b0, b1) < e2;
 }
 
 typedef struct seg_index {
@@ -255,13 +256,13 @@ typedef struct seg_index {
 static void seg_ends(const seg_index *q, size_t s, const double **a, const double **b) {
   size_t i = q->ring[s], st = q->r->start[i], n = gr_ring_len(q->r, i);
   *a = q->r->xy + 2 * s;
-  *b = q->r->xy + 2 * (st + (s - st + 1) % n);
+  *b = q->r->xy + 2 * (st + gr_ring_next(s - st, n));
 }
 
 static int seg_adjacent(const seg_index *q, size_t s, size_t t) {
   if (q->ring[s] != q->ring[t]) return 0;
   size_t st = q->r->start[q->ring[s]], n = gr_ring_len(q->r, q->ring[s]), u = s - st, v = t - st;
-  return (u + 1) % n == v || (v + 1) % n == u;
+  return gr_ring_next(u, n) == v || gr_ring_next(v, n) == u;
 }
 
 /* Whether two segments of the rings r meet (neighbours at their shared end
@@ -275,6 +276,9 @@ static int rings_meet(const gr_rings *r, double bs) {
     for (int c = 0; c < 2; c++) { lo[c] = gr_lo(lo[c], r->xy[2 * k + c]); hi[c] = gr_hi(hi[c], r->xy[2 * k + c]); }
   while (((hi[0] - lo[0]) / bs + 1) * ((hi[1] - lo[1]) / bs + 1) > 4.0 * (double)ns + 16) bs *= 1.5;
   int bx = (int)floor((hi[0] - lo[0]) / bs) + 1, by = (int)floor((hi[1] - lo[1]) / bs) + 1;
+  /* by the reciprocal: any rule monotonic in x and y puts two segments
+   * within DIRECT_EPS in a bucket together, and the clamps keep it inside */
+  double ibs = 1 / bs;
   size_t nb = (size_t)bx * by, *cnt = calloc(nb + 1, sizeof *cnt), *list = NULL;
   seg_index q = {r, malloc(ns * sizeof(size_t))};
   int *box = malloc(4 * ns * sizeof *box), res = -1;
@@ -285,10 +289,10 @@ static int rings_meet(const gr_rings *r, double bs) {
     const double *a, *b;
     seg_ends(&q, s, &a, &b);
     int *o = box + 4 * s;
-    o[0] = (int)floor((gr_lo(a[0], b[0]) - DIRECT_EPS - lo[0]) / bs);
-    o[1] = (int)floor((gr_hi(a[0], b[0]) + DIRECT_EPS - lo[0]) / bs);
-    o[2] = (int)floor((gr_lo(a[1], b[1]) - DIRECT_EPS - lo[1]) / bs);
-    o[3] = (int)floor((gr_hi(a[1], b[1]) + DIRECT_EPS - lo[1]) / bs);
+    o[0] = (int)floor((gr_lo(a[0], b[0]) - DIRECT_EPS - lo[0]) * ibs);
+    o[1] = (int)floor((gr_hi(a[0], b[0]) + DIRECT_EPS - lo[0]) * ibs);
+    o[2] = (int)floor((gr_lo(a[1], b[1]) - DIRECT_EPS - lo[1]) * ibs);
+    o[3] = (int)floor((gr_hi(a[1], b[1]) + DIRECT_EPS - lo[1]) * ibs);
     o[0] = o[0] < 0 ? 0 : o[0]; o[2] = o[2] < 0 ? 0 : o[2];
     o[1] = o[1] >= bx ? bx - 1 : o[1]; o[3] = o[3] >= by ? by - 1 : o[3];
     for (int j = o[2]; j <= o[3]; j++)

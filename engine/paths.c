@@ -190,6 +190,35 @@ static inline double seg_dist2(const double *p, const double *a, const double *b
 }
 
 double gr_seg_dist(const double *p, const double *a, const double *b) { return sqrt(seg_dist2(p, a, b)); }
+double gr_seg_dist2(const double *p, const double *a, const double *b) { return seg_dist2(p, a, b); }
+
+/* The point strictly between a and b (indices into p) farthest from the
+ * segment pa-pb and farther than tol from it (0: none). No division per
+ * point: a point whose foot falls inside the segment is farther than the
+ * worst so far w when its cross product with the segment, squared, exceeds
+ * w^2 L^2; one beyond an end by its distance to that end. Only a new worst
+ * point takes a root. */
+static size_t chain_worst(const double *p, size_t a, size_t b, const double *pa, const double *pb, double tol) {
+  double ex = pb[0] - pa[0], ey = pb[1] - pa[1], L2 = ex * ex + ey * ey;
+  double dw2 = tol * tol, lim = L2 > 0 ? dw2 * L2 : dw2;
+  size_t worst = 0;
+  for (size_t k = a + 1; k < b; k++) {
+    double ux = p[2 * k] - pa[0], uy = p[2 * k + 1] - pa[1], dot = ux * ex + uy * ey, d2;
+    if (dot > 0 && dot < L2) {
+      double cr = ux * ey - uy * ex;
+      if (!(cr * cr > lim)) continue;
+      d2 = cr * cr / L2;
+    } else {
+      double vx = dot > 0 ? p[2 * k] - pb[0] : ux, vy = dot > 0 ? p[2 * k + 1] - pb[1] : uy;
+      d2 = vx * vx + vy * vy;
+    }
+    if (!(d2 > dw2)) continue;
+    dw2 = d2;
+    lim = L2 > 0 ? d2 * L2 : d2;
+    worst = k;
+  }
+  return worst;
+}
 
 int gr_rings_simplify(gr_rings *r, double tol) {
   size_t cap = 0, *stack = NULL;
@@ -216,18 +245,7 @@ int gr_rings_simplify(gr_rings *r, double tol) {
       while (ns) {
         size_t b = stack[--ns], a = stack[--ns];
         const double *pa = p + 2 * a, *pb = p + 2 * (b % n);
-        size_t worst = 0;
-        double dw = tol, dw2 = tol * tol;
-        /* gr_seg_dist's distance, its square first: sqrt is monotonic and
-         * sqrt(fl(x * x)) = x, so a point whose square is at most dw2 (the
-         * worst's, or tol's) is no farther, and only the others need the
-         * root; the points kept are those of the plain comparison */
-        for (size_t k = a + 1; k < b; k++) {
-          double d2 = seg_dist2(p + 2 * k, pa, pb);
-          if (!(d2 > dw2)) continue;
-          double d = sqrt(d2);
-          if (d > dw) { dw = d; dw2 = d2; worst = k; }
-        }
+        size_t worst = chain_worst(p, a, b, pa, pb, tol);
         if (!worst) continue;
         keep[worst] = 1;
         if (gr_grow(&stack, &cap, ns + 4, sizeof *stack)) { free(keep); free(stack); return GR_EMEM; }

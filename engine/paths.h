@@ -35,12 +35,18 @@ static inline int gr_rings_point(gr_rings *r, double x, double y) {
 int gr_rings_close(gr_rings *r); /* ends the ring begun by the points since the last close */
 static inline size_t gr_ring_len(const gr_rings *r, size_t i) { return r->start[i + 1] - r->start[i]; }
 static inline const double *gr_ring_xy(const gr_rings *r, size_t i) { return r->xy + 2 * r->start[i]; }
+/* The index after / before k on a ring of n points (k < n): no division in
+ * loops over every point of a section. */
+static inline size_t gr_ring_next(size_t k, size_t n) { return k + 1 < n ? k + 1 : 0; }
+static inline size_t gr_ring_prev(size_t k, size_t n) { return k ? k - 1 : n - 1; }
 double gr_ring_area(const gr_rings *r, size_t i);   /* signed, CCW > 0, mm^2 */
 double gr_ring_length(const gr_rings *r, size_t i); /* perimeter, mm */
 /* Sum of signed areas: with correct orientation, the area of the region. */
 double gr_rings_area(const gr_rings *r);
 /* Distance from point p to segment a-b (mm). */
 double gr_seg_dist(const double *p, const double *a, const double *b);
+/* Its square (no root: for comparisons with a squared bound). */
+double gr_seg_dist2(const double *p, const double *a, const double *b);
 /* Bounding box of ring i: x0 y0 x1 y1 into b (mm). */
 void gr_ring_box(const gr_rings *r, size_t i, double b[4]);
 /* Even-odd test of ring i alone (1 inside). */
