@@ -357,9 +357,10 @@ static int newton_from(const offset *f, const double p[3], gr_field_at *at, doub
      * a step dx is about rho dx, rho measured as the ratio of the last two
      * steps. Done when that is below tol L (or the step itself below
      * 10 tol L: then the error left is below tol L / 100) */
-    double rho = dx / prev;
+    /* (rho < 0.1 and rho dx < tol L (1 - rho), times prev: no division) */
+    int settled = dx < 10 * tol * f->L || (it > 0 && dx < 0.1 * prev && dx * dx < tol * f->L * (prev - dx));
     prev = dx;
-    if (dx < 10 * tol * f->L || (it > 0 && rho < 0.1 && rho * dx < tol * f->L * (1 - rho))) {
+    if (settled) {
       if (!(gr_dist3(x, x0) < 0.25 * f->L)) return 0;
       memcpy(q, x, sizeof x);
       return 1;
@@ -876,8 +877,10 @@ static int model_foot(const offset *f, const double p[3], const double x[3], gr_
       D2 += (q[a] - o[a]) * (q[a] - o[a]);
     }
     *sd = s * sqrt(g2);
-    double d = fabs(*sd), D = sqrt(D2), rho = D / prev;
-    if (r > 0 && (D == 0 || (rho < 0.5 && rho * D < 1e-6 * f->L * (1 - rho)))) {
+    /* settled: the step's ratio to the last, rho = D / prev, below 1/2 and
+     * the error left, rho D / (1 - rho), below 1e-6 L (times prev: no division) */
+    double d = fabs(*sd), D = sqrt(D2);
+    if (r > 0 && (D == 0 || (D < 0.5 * prev && D * D < 1e-6 * f->L * (prev - D)))) {
       /* the reach at the last foot only: the earlier ones do not decide */
       double R = reach_for(f, q, d);
       if (!(d < R)) return 0;
@@ -885,7 +888,7 @@ static int model_foot(const offset *f, const double p[3], const double x[3], gr_
       double K = fmax(1 / (R - d), sqrt(gr_dot3(dg, dg) / (gr_dot3(gp, gp) * prev2)));
       return K * D2 <= 2 * MODEL_ERR * f->L;
     }
-    if (r > 0 && rho >= 0.5) break; /* too slow to settle in the rounds left */
+    if (r > 0 && D >= 0.5 * prev) break; /* too slow to settle in the rounds left */
     prev = D;
     prev2 = D2;
   }

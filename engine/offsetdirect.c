@@ -247,24 +247,6 @@ static int seg_meet(const double *a0, const double *a1, const double *b0, const 
          gr_seg_dist2(a1, b0, b1) < e2;
 }
 
-typedef struct seg_index {
-  const gr_rings *r;
-  size_t *ring; /* per point: its ring */
-} seg_index;
-
-/* Segment s's ends (from point s of its ring to the next). */
-static void seg_ends(const seg_index *q, size_t s, const double **a, const double **b) {
-  size_t i = q->ring[s], st = q->r->start[i], n = gr_ring_len(q->r, i);
-  *a = q->r->xy + 2 * s;
-  *b = q->r->xy + 2 * (st + gr_ring_next(s - st, n));
-}
-
-static int seg_adjacent(const seg_index *q, size_t s, size_t t) {
-  if (q->ring[s] != q->ring[t]) return 0;
-  size_t st = q->r->start[q->ring[s]], n = gr_ring_len(q->r, q->ring[s]), u = s - st, v = t - st;
-  return gr_ring_next(u, n) == v || gr_ring_next(v, n) == u;
-}
-
 /* Whether two segments of the rings r meet (neighbours at their shared end
  * apart), tested pairwise within buckets of about bs: 1, 0, or -1 out of
  * memory. */
@@ -280,14 +262,15 @@ static int rings_meet(const gr_rings *r, double bs) {
    * within DIRECT_EPS in a bucket together, and the clamps keep it inside */
   double ibs = 1 / bs;
   size_t nb = (size_t)bx * by, *cnt = calloc(nb + 1, sizeof *cnt), *list = NULL;
-  seg_index q = {r, malloc(ns * sizeof(size_t))};
+  /* nxt[s]: the point after s on its ring: segment s runs from s to nxt[s],
+   * and two segments are neighbours when one's nxt is the other */
+  size_t *nxt = malloc(ns * sizeof *nxt);
   int *box = malloc(4 * ns * sizeof *box), res = -1;
-  if (!cnt || !box || !q.ring) goto done;
+  if (!cnt || !box || !nxt) goto done;
   for (size_t i = 0; i < r->nrings; i++)
-    for (size_t k = r->start[i]; k < r->start[i + 1]; k++) q.ring[k] = i;
+    for (size_t k = r->start[i], end = r->start[i + 1]; k < end; k++) nxt[k] = k + 1 < end ? k + 1 : r->start[i];
   for (size_t s = 0; s < ns; s++) {
-    const double *a, *b;
-    seg_ends(&q, s, &a, &b);
+    const double *a = r->xy + 2 * s, *b = r->xy + 2 * nxt[s];
     int *o = box + 4 * s;
     o[0] = (int)floor((gr_lo(a[0], b[0]) - DIRECT_EPS - lo[0]) * ibs);
     o[1] = (int)floor((gr_hi(a[0], b[0]) + DIRECT_EPS - lo[0]) * ibs);
@@ -311,14 +294,12 @@ static int rings_meet(const gr_rings *r, double bs) {
   for (size_t k = 0; k < nb && !res; k++)
     for (size_t x = cnt[k]; x < cnt[k + 1] && !res; x++)
       for (size_t y = x + 1; y < cnt[k + 1] && !res; y++) {
-        const double *a0, *a1, *b0, *b1;
-        if (seg_adjacent(&q, list[x], list[y])) continue;
-        seg_ends(&q, list[x], &a0, &a1);
-        seg_ends(&q, list[y], &b0, &b1);
-        res = seg_meet(a0, a1, b0, b1);
+        size_t u = list[x], v = list[y];
+        if (nxt[u] == v || nxt[v] == u) continue;
+        res = seg_meet(r->xy + 2 * u, r->xy + 2 * nxt[u], r->xy + 2 * v, r->xy + 2 * nxt[v]);
       }
 done:
-  free(cnt); free(list); free(box); free(q.ring);
+  free(cnt); free(list); free(box); free(nxt);
   return res;
 }
 

@@ -112,7 +112,7 @@ int gr_rings_nest(gr_rings *r, gr_err *e) {
   size_t n = r->nrings;
   free(r->parent);
   r->parent = malloc((n ? n : 1) * sizeof *r->parent);
-  double *box = malloc((n ? n : 1) * 5 * sizeof *box);
+  double *box = malloc((n ? n : 1) * 6 * sizeof *box); /* x0 y0 x1 y1 |area| area */
   int *depth = malloc((n ? n : 1) * sizeof *depth);
   if (!r->parent || !box || !depth) {
     free(box);
@@ -120,20 +120,21 @@ int gr_rings_nest(gr_rings *r, gr_err *e) {
     return gr_fail(e, GR_EMEM, "out of memory nesting %zu rings", n);
   }
   for (size_t i = 0; i < n; i++) {
-    gr_ring_box(r, i, box + 5 * i);
-    box[5 * i + 4] = fabs(gr_ring_area(r, i));
+    gr_ring_box(r, i, box + 6 * i);
+    box[6 * i + 5] = gr_ring_area(r, i);
+    box[6 * i + 4] = fabs(box[6 * i + 5]);
   }
   for (size_t i = 0; i < n; i++) {
     const double *p = gr_ring_xy(r, i);
     long best = -1;
     for (size_t j = 0; j < n; j++) {
       if (j == i) continue;
-      const double *b = box + 5 * j, *bi = box + 5 * i;
+      const double *b = box + 6 * j, *bi = box + 6 * i;
       /* boxes compared to 1e-9 mm: a ring touching its parent's border
        * segment may differ from it by rounding */
       if (b[4] <= bi[4] || b[0] > bi[0] + 1e-9 || b[1] > bi[1] + 1e-9 || b[2] < bi[2] - 1e-9 || b[3] < bi[3] - 1e-9)
         continue;
-      if (best >= 0 && box[5 * best + 4] <= b[4]) continue;
+      if (best >= 0 && box[6 * best + 4] <= b[4]) continue;
       if (gr_ring_contains(r, j, p[0], p[1])) best = (long)j;
     }
     r->parent[i] = (int)best;
@@ -144,7 +145,7 @@ int gr_rings_nest(gr_rings *r, gr_err *e) {
     depth[i] = d;
   }
   for (size_t i = 0; i < n; i++) {
-    double a = gr_ring_area(r, i);
+    double a = box[6 * i + 5];
     if ((depth[i] % 2 == 0 && a < 0) || (depth[i] % 2 == 1 && a > 0)) ring_reverse(r, i);
   }
   free(box);
@@ -180,17 +181,7 @@ int gr_rings_copy(gr_rings *dst, const gr_rings *src) {
   return rc;
 }
 
-/* Squared distance from p to segment ab (gr_seg_dist is its root). */
-static inline double seg_dist2(const double *p, const double *a, const double *b) {
-  double ex = b[0] - a[0], ey = b[1] - a[1], L2 = ex * ex + ey * ey;
-  double t = L2 > 0 ? ((p[0] - a[0]) * ex + (p[1] - a[1]) * ey) / L2 : 0;
-  t = t < 0 ? 0 : t > 1 ? 1 : t;
-  double dx = a[0] + t * ex - p[0], dy = a[1] + t * ey - p[1];
-  return dx * dx + dy * dy;
-}
-
-double gr_seg_dist(const double *p, const double *a, const double *b) { return sqrt(seg_dist2(p, a, b)); }
-double gr_seg_dist2(const double *p, const double *a, const double *b) { return seg_dist2(p, a, b); }
+double gr_seg_dist(const double *p, const double *a, const double *b) { return sqrt(gr_seg_dist2(p, a, b)); }
 
 /* The point strictly between a and b (indices into p) farthest from the
  * segment pa-pb and farther than tol from it (0: none). No division per

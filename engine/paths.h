@@ -46,7 +46,13 @@ double gr_rings_area(const gr_rings *r);
 /* Distance from point p to segment a-b (mm). */
 double gr_seg_dist(const double *p, const double *a, const double *b);
 /* Its square (no root: for comparisons with a squared bound). */
-double gr_seg_dist2(const double *p, const double *a, const double *b);
+static inline double gr_seg_dist2(const double *p, const double *a, const double *b) {
+  double ex = b[0] - a[0], ey = b[1] - a[1], L2 = ex * ex + ey * ey;
+  double t = L2 > 0 ? ((p[0] - a[0]) * ex + (p[1] - a[1]) * ey) / L2 : 0;
+  t = t < 0 ? 0 : t > 1 ? 1 : t;
+  double dx = a[0] + t * ex - p[0], dy = a[1] + t * ey - p[1];
+  return dx * dx + dy * dy;
+}
 /* Bounding box of ring i: x0 y0 x1 y1 into b (mm). */
 void gr_ring_box(const gr_rings *r, size_t i, double b[4]);
 /* Even-odd test of ring i alone (1 inside). */
