@@ -1,5 +1,6 @@
 /* cptab.c: shared closest points, see cptab.h. */
 #include "cptab.h"
+#include <limits.h>
 #include <math.h>
 #include <string.h>
 #include <stdlib.h>
@@ -116,6 +117,11 @@ int gr_cptab_layer(gr_cptab *t, int q, gr_err *e) {
 }
 
 /* Refinement on the true field from the closest points of the nearest nodes. */
+typedef struct node_models {
+  double *c;
+  size_t n, cap; /* models made; room, in doubles */
+} node_models;
+
 typedef struct near_ud {
   const gr_field *f;
   double z, lo[2], h;
@@ -123,13 +129,16 @@ typedef struct near_ud {
   const double *q; /* 3 per window node */
   /* node_predict's stencil per window node, made when a point first needs
    * it (refined points crowd round the contours: most nodes serve several):
-   * pst 0 not made, 1 made (pco: NCO per node), 2 no model there */
-  unsigned char *pst;
-  double *pco;
+   * pix 0 not made, 1 no model there, k >= 2 model k - 2 of pm (NCO each,
+   * packed in the order made: the nodes by the contours only, a few
+   * hundred kB less to keep in cache than one slot per node) */
+  unsigned *pix;
+  struct node_models *pm;
   /* the nodes' signed distances and the thickness their values imply (NaN
    * where a value is only a bound): T's slope along the section from them
    * (NULL: none) */
   const double *sd, *T;
+  double ih; /* 1 / h: grid positions without a division per point */
 } near_ud;
 
 
@@ -140,7 +149,7 @@ typedef struct near_ud {
  * hints (3 each) written, NaN past the last; returns how many. */
 enum { NH = 4 };
 static int node_hints(const near_ud *u, double x, double y, double *hi) {
-  double fx = (x - u->lo[0]) / u->h, fy = (y - u->lo[1]) / u->h;
+  double fx = (x - u->lo[0]) * u->ih, fy = (y - u->lo[1]) * u->ih;
   int a = (int)floor(fx), b = (int)floor(fy), nh = 0, order[4] = {0, 1, 2, 3};
   double d2[4];
   for (int c = 0; c < 4; c++) d2[c] = (fx - a - (c & 1)) * (fx - a - (c & 1)) + (fy - b - (c >> 1)) * (fy - b - (c >> 1));
@@ -226,28 +235,38 @@ static int node_model(const near_ud *u, int i, int j, double c[NCO]) {
   return 1;
 }
 
+/* Node (i, j)'s model made into the next slot of u->pm: its pix, 1 when
+ * it has none (or no room could be had: the point is then solved from the
+ * nodes' hints, as where there is no model). */
+static unsigned model_add(const near_ud *u, int i, int j) {
+  node_models *m = u->pm;
+  if (m->n + 1 >= UINT_MAX - 2 || gr_grow(&m->c, &m->cap, NCO * (m->n + 1), sizeof *m->c)) return 1;
+  if (!node_model(u, i, j, m->c + NCO * m->n)) return 1;
+  return (unsigned)(2 + m->n++);
+}
+
 /* The closest point of (x, y) predicted from the nearest node's and its eight
  * neighbours' closest points: the foot map's second-order Taylor expansion
  * there, its derivatives by central differences (error of order h^3 times
  * the map's third derivative: tens of nanometres at h = 0.025 mm). NaN when a
  * node of the 3 x 3 stencil has none or when the stencil's closest points
  * jump (they lie on more than one patch of H). The stencil comes from
- * node_model, once per node (u->pst, u->pco); the sum is the same. ts: T's
+ * node_model, once per node (u->pix, u->pm); the sum is the same. ts: T's
  * slope along the section there (per mm; NaN when unknown). */
 /* The stencil of the node nearest (x, y) (its index in *n, (x, y)'s offset
  * from it in node steps in st), or NULL when it has none (a node of its
  * 3 x 3 has no closest point, or they jump). */
 static const double *node_stencil(const near_ud *u, double x, double y, size_t *n, double st[2]) {
-  double fx = (x - u->lo[0]) / u->h, fy = (y - u->lo[1]) / u->h;
+  double fx = (x - u->lo[0]) * u->ih, fy = (y - u->lo[1]) * u->ih;
   /* the nearest node (i, j) must have all eight neighbours */
   if (!(fx >= 0.5 && fy >= 0.5 && fx < u->nx - 1.5 && fy < u->ny - 1.5)) return NULL;
   int i = (int)(fx + 0.5), j = (int)(fy + 0.5);
   st[0] = fx - i;
   st[1] = fy - j;
   *n = (size_t)i + (size_t)u->nx * (size_t)j;
-  double *c = u->pco + NCO * *n;
-  if (!u->pst[*n]) u->pst[*n] = node_model(u, i, j, c) ? 1 : 2;
-  return u->pst[*n] == 1 ? c : NULL;
+  unsigned k = u->pix[*n];
+  if (!k) k = u->pix[*n] = model_add(u, i, j);
+  return k >= 2 ? u->pm->c + NCO * (size_t)(k - 2) : NULL;
 }
 
 static void node_predict(const near_ud *u, double x, double y, double pr[3], double ts[2]) {
@@ -262,8 +281,8 @@ static void node_predict(const near_ud *u, double x, double y, double pr[3], dou
     pr[k] = q0 + s * dx + t * dy + 0.5 * s * s * dxx + s * t * dxy + 0.5 * t * t * dyy;
   }
   const double *T = c + 15;
-  ts[0] = (T[0] + s * T[2] + t * T[4]) / u->h;
-  ts[1] = (T[1] + t * T[3] + s * T[4]) / u->h;
+  ts[0] = (T[0] + s * T[2] + t * T[4]) * u->ih;
+  ts[1] = (T[1] + t * T[3] + s * T[4]) * u->ih;
 }
 
 /* Whether the section is smooth between its points a and b
@@ -570,19 +589,20 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
   int cut = gr_domain_trim_parts(f, &f, &d, &skin);
   gr_slice_grid_size(so, &nx, &ny, &hx, &hy);
   size_t nn = (size_t)nx * ny;
-  double *Q = malloc((6 + NCO + (cut ? 1 : 0)) * nn * sizeof *Q);
-  unsigned char *pst = calloc(nn, 1);
-  if (!Q || !pst) {
+  double *Q = malloc((6 + (cut ? 1 : 0)) * nn * sizeof *Q);
+  unsigned *pix = calloc(nn, sizeof *pix);
+  node_models pm = {NULL, 0, 0};
+  if (!Q || !pix) {
     free(Q);
-    free(pst);
+    free(pix);
     return gr_fail(e, GR_EMEM, "out of memory");
   }
-  double *sd = Q + 3 * nn, *v = Q + 4 * nn, *pco = Q + 5 * nn;
+  double *sd = Q + 3 * nn, *v = Q + 4 * nn;
   double sh[3] = {o[0] - t->oref[0], o[1] - t->oref[1], o[2] - t->oref[2]};
   window_nodes(t, q, nx, ny, sh, Q, sd);
   double band = value_band(f, cut, fmax(hx, hy));
   int rc = node_values(t, q, f, band, nx, nn, sh, Q, sd, v, e);
-  double *dv = Q + (6 + NCO) * nn, *T = Q + (5 + NCO) * nn;
+  double *dv = Q + 6 * nn, *T = Q + 5 * nn;
   if (!rc && !cut) gr_offset_implied_thickness(f, nn, sd, v, band, T);
   unsigned char *far = cut ? malloc(nn) : NULL;
   if (!rc && cut && !far) rc = gr_fail(e, GR_EMEM, "out of memory");
@@ -590,7 +610,7 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
     rc = gr_domain_grid(d, skin, z, so->lo[0], so->lo[1], hx, hy, nx, ny, dv, far, e);
     if (!rc) gr_domain_trim_apply(nn, v, dv, skin, NULL);
   }
-  cut_ud u = {{f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q, pst, pco, cut ? NULL : sd, cut ? NULL : T},
+  cut_ud u = {{f, z, {so->lo[0], so->lo[1]}, hx, nx, ny, Q, pix, &pm, cut ? NULL : sd, cut ? NULL : T, 1 / hx},
               d, skin, hy, dv, far, sd, gr_offset_herr(f)};
   gr_slice_opts sm = *so; /* chords judged by their neighbours where the section is smooth */
   sm.smooth = !cut && gr_offset_smooth_thickness(f) ? near_smooth : NULL;
@@ -601,7 +621,8 @@ int gr_cptab_slice(const gr_cptab *t, const gr_field *f, const double o[3], int 
   if (!rc)
     rc = cut ? gr_slice_grid(v, so, cut_fn, NULL, &u, out, e) : gr_slice_grid(v, &sm, near_fn, near_eval, &u.n, out, e);
   free(far);
-  free(pst);
+  free(pix);
+  free(pm.c);
   free(Q);
   return rc;
 }

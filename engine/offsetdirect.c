@@ -115,7 +115,8 @@ static int edges_init(const double *p, size_t n, double b, double tol, const dou
     const double *q = p + 2 * gr_ring_next(k, n);
     double dx = q[0] - p[2 * k], dy = q[1] - p[2 * k + 1], L = gr_len2d(dx, dy);
     g->p[0] = p[2 * k]; g->p[1] = p[2 * k + 1];
-    g->u[0] = dx / L; g->u[1] = dy / L;
+    double iL = 1 / L;
+    g->u[0] = dx * iL; g->u[1] = dy * iL;
     g->n[0] = -g->u[1]; g->n[1] = g->u[0];
     g->cut = on_cut(cut, p + 2 * k, q);
     double sh = g->cut ? -CUT_OUT * b : b;
@@ -123,6 +124,9 @@ static int edges_init(const double *p, size_t n, double b, double tol, const dou
     g->prev = (int)gr_ring_prev(k, n);
     g->next = (int)gr_ring_next(k, n);
   }
+  /* a right turn's mitre is off the arc by b (1 / cos(t / 2) - 1), cos(t / 2)
+   * = sqrt((1 + cos t) / 2): within tol / 2 when (1 + cos t) / 2 >= cmin */
+  double cmin = 1 / ((1 + 0.5 * tol / b) * (1 + 0.5 * tol / b));
   for (size_t k = 0; k < n; k++) {
     oedge *g = E + k;
     const oedge *f = E + g->prev;
@@ -136,7 +140,7 @@ static int edges_init(const double *p, size_t n, double b, double tol, const dou
       continue;
     }
     /* a right turn by t: the lines meet b (1 / cos(t / 2) - 1) off the arc */
-    g->arc = !(cr >= 0 || b * (1 / sqrt(0.5 * (1 + dt)) - 1) <= 0.5 * tol);
+    g->arc = !(cr >= 0 || 0.5 * (1 + dt) >= cmin);
     if (g->arc) {
       g->e[0] = g->p[0] + b * f->n[0]; g->e[1] = g->p[1] + b * f->n[1];
       g->s[0] = g->a[0]; g->s[1] = g->a[1];
