@@ -706,6 +706,7 @@ static int circle_within(const double *p, const double *a, const double *b, doub
   double wx = b[0] - a[0], wy = b[1] - a[1], L2 = wx * wx + wy * wy;
   double den2 = (ux * ux + uy * uy) * (vx * vx + vy * vy) * L2, cr = ux * vy - uy * vx;
   if (!(den2 > 0)) return 0;
+  if (cr == 0) return 1; /* collinear: no sagitta */
   double K = (0.25 * L2 + s * s) / (2 * s);
   return den2 >= 4 * cr * cr * K * K;
 }
