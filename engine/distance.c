@@ -69,12 +69,21 @@ struct lreach_slot {
   const struct offset *owner; /* the field whose H it is (shift 0) */
   double lo[3], period[3];    /* one period of H */
   int threads;
+  /* the group's members check their thickness on H's vertices near their
+   * box (offset_vertices): every member's box lies on the same part of H
+   * (their shifts are whole periods), so the first member keeps the
+   * vertices of that part, in H's frame, grown by VNEAR_PAD (vmade 1;
+   * -1: no room), and the others test those only */
+  int vmade;
+  size_t *vid, nvid;
+  double vlo[3], vhi[3];
 };
 
 static void lreach_free(lreach_slot *s) {
   if (!s) return;
   pthread_mutex_destroy(&s->mu);
   gr_reach_free(s->r);
+  free(s->vid);
   free(s);
 }
 
@@ -1030,10 +1039,51 @@ static int offset_mesh(offset *f, const gr_offset_opts *o, const offset *lk, dou
 
 /* H's vertices (shifted) into vx, vy, vz; a shared H may reach far beyond
  * this field's box: only its part within reach counts. Returns the count. */
-static size_t offset_vertices(const offset *f, const gr_offset_opts *o, int shared, double reach, double *vx,
-                              double *vy, double *vz) {
-  size_t m = 0;
-  for (size_t i = 0; i < f->h->nv; i++) {
+/* Margin (mm) of the vertices a group keeps for its members' checks: far
+ * above the rounding of box - shift (1e-15 mm), far below a mesh spacing. */
+#define VNEAR_PAD 1e-6
+
+/* The vertices of H (its own frame) within [lo, hi], kept in s by the
+ * first member that asks, under s's lock; the list when it covers [lo, hi]
+ * (the rounding of another member's box), else NULL: search all. */
+static const size_t *near_vertices(lreach_slot *s, const gr_mesh *h, const double lo[3], const double hi[3],
+                                   size_t *n) {
+  pthread_mutex_lock(&s->mu);
+  if (!s->vmade) {
+    s->vmade = -1;
+    size_t *id = malloc((h->nv + 1) * sizeof *id), m = 0;
+    for (int a = 0; a < 3; a++) s->vlo[a] = lo[a] - VNEAR_PAD, s->vhi[a] = hi[a] + VNEAR_PAD;
+    for (size_t i = 0; id && i < h->nv; i++) {
+      const double *v = h->v + 3 * i;
+      int in = 1;
+      for (int a = 0; a < 3; a++) in &= v[a] >= s->vlo[a] && v[a] <= s->vhi[a];
+      if (in) id[m++] = i;
+    }
+    if (id) s->vid = id, s->nvid = m, s->vmade = 1;
+  }
+  pthread_mutex_unlock(&s->mu);
+  int cover = s->vmade == 1;
+  for (int a = 0; a < 3 && cover; a++) cover = s->vlo[a] + 0.5 * VNEAR_PAD <= lo[a] && hi[a] <= s->vhi[a] - 0.5 * VNEAR_PAD;
+  *n = cover ? s->nvid : 0;
+  return cover ? s->vid : NULL;
+}
+
+/* H's vertices (shifted) into vx, vy, vz, those within reach of the box
+ * only when H is shared (`lrs`: the group's slot, whose kept vertices
+ * spare the search over all of H, whose count grows with the group); the
+ * count. */
+static size_t offset_vertices(const offset *f, const gr_offset_opts *o, int shared, lreach_slot *lrs, double reach,
+                              double *vx, double *vy, double *vz) {
+  size_t m = 0, nc = f->h->nv;
+  const size_t *cand = NULL;
+  if (shared && lrs) {
+    double lo[3], hi[3];
+    for (int a = 0; a < 3; a++) lo[a] = o->box_lo[a] - reach - f->shift[a], hi[a] = o->box_hi[a] + reach - f->shift[a];
+    cand = near_vertices(lrs, f->h, lo, hi, &nc);
+    if (!cand) nc = f->h->nv;
+  }
+  for (size_t c = 0; c < nc; c++) {
+    size_t i = cand ? cand[c] : c;
     double p[3] = {f->h->v[3 * i] + f->shift[0], f->h->v[3 * i + 1] + f->shift[1], f->h->v[3 * i + 2] + f->shift[2]};
     int in = 1;
     for (int a = 0; a < 3 && shared; a++) in &= p[a] >= o->box_lo[a] - reach && p[a] <= o->box_hi[a] + reach;
@@ -1294,7 +1344,7 @@ static int offset_checks(offset *f, const gr_offset_opts *o, const offset *lk, d
   double *buf = malloc((4 * nv + 1) * sizeof *buf);
   if (!buf) return gr_fail(e, GR_EMEM, "out of memory");
   double *vx = buf, *vy = buf + nv, *vz = buf + 2 * nv, *t = buf + 3 * nv;
-  nv = offset_vertices(f, o, lk != NULL, reach, vx, vy, vz);
+  nv = offset_vertices(f, o, lk != NULL, lk ? lk->lrs : NULL, reach, vx, vy, vz);
   int rc = offset_check_thickness(f, o, nv, vx, vy, vz, t, maxt, e);
   if (rc == GR_OK) {
     f->tmax = *maxt;
