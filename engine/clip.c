@@ -57,7 +57,7 @@ int gr_clip_poly(const double *p, size_t n, int closed, int kind, int dir,
   if (!closed) s0 = 0;
   size_t nedges = closed ? n : n - 1, m = 0;
   for (size_t e = 0; e < nedges; e++) {
-    size_t a = (s0 + e) % n, b = (s0 + e + 1) % n;
+    size_t a = s0 + e < n ? s0 + e : s0 + e - n, b = gr_ring_next(a, n); /* (s0 < n, e < n) */
     double ax = p[2 * a], ay = p[2 * a + 1], bx = p[2 * b], by = p[2 * b + 1];
     double t0, t1;
     if (!gr_clip_seg(ax, ay, bx, by, lo, hi, &t0, &t1)) continue;
@@ -98,7 +98,7 @@ double gr_clip_area(const gr_rings *r, const double lo[2], const double hi[2]) {
       size_t m = 0;
       if (gr_grow(&b, &capb, 2 * n + 8, 2 * sizeof(double))) break;
       for (size_t k = 0; k < n; k++) {
-        const double *P = a + 2 * ((k + n - 1) % n), *Q = a + 2 * k;
+        const double *P = a + 2 * gr_ring_prev(k, n), *Q = a + 2 * k;
         int pin = upper ? P[ax] <= c : P[ax] >= c, qin = upper ? Q[ax] <= c : Q[ax] >= c;
         if (qin != pin) {
           double t = (c - P[ax]) / (Q[ax] - P[ax]);

@@ -299,7 +299,7 @@ void gr_dtable_extent(const gr_dtable *t, double *lo, double *hi) {
 static size_t clip_half(const double *a, size_t n, double *b, int ax, double c, int s) {
   size_t m = 0;
   for (size_t i = 0; i < n; i++) {
-    const double *p = a + 2 * i, *q = a + 2 * ((i + 1) % n);
+    const double *p = a + 2 * i, *q = a + 2 * gr_ring_next(i, n);
     double dp = s * (p[ax] - c), dq = s * (q[ax] - c);
     if (dp <= 0) { b[2 * m] = p[0]; b[2 * m + 1] = p[1]; m++; }
     if ((dp < 0 && dq > 0) || (dp > 0 && dq < 0)) {

@@ -125,7 +125,7 @@ static int scan_build(scan *sc, const gr_rings *r, double angle, double d,
     const double *p = gr_ring_xy(r, i);
     size_t n = gr_ring_len(r, i);
     for (size_t a = 0; a < n; a++) {
-      size_t b = (a + 1) % n;
+      size_t b = gr_ring_next(a, n);
       double ua = p[2 * a] * sc->c + p[2 * a + 1] * sc->s;
       double va = -p[2 * a] * sc->s + p[2 * a + 1] * sc->c;
       double ub = p[2 * b] * sc->c + p[2 * b + 1] * sc->s;

@@ -157,7 +157,7 @@ static int face_lines(const gr_job_opts *o, gr_tlayer *tl) {
         const double *p = gr_ring_xy(r, i);
         size_t n = gr_ring_len(r, i);
         for (size_t a = 0; a < n; a++) {
-          const double *P = p + 2 * a, *Q = p + 2 * ((a + 1) % n);
+          const double *P = p + 2 * a, *Q = p + 2 * gr_ring_next(a, n);
           double pa = vert ? P[0] : P[1], qa = vert ? Q[0] : Q[1];   /* across the line */
           double pl = vert ? P[1] : P[0], ql = vert ? Q[1] : Q[0];   /* along it */
           if ((pa > pos) != (qa > pos)) cr[f.nc++] = pl + (pos - pa) * (ql - pl) / (qa - pa);

@@ -29,6 +29,14 @@
 #include <math.h>
 #include <stdlib.h>
 
+/* (k + d) modulo len for k < len and a small d >= 0: no division (these
+ * indices are taken for every vertex of every section, twice over). */
+static inline size_t ring_at(size_t k, size_t d, size_t len) {
+  size_t x = k + d;
+  while (x >= len) x -= len;
+  return x;
+}
+
 #define TIP_COS 0.7071   /* cos 45 degrees */
 #define TIP_FIRST 2.5e-4 /* first probe beyond the tip (mm) */
 #define TIP_STEP 1e-3    /* then steps along the crest (mm) */
@@ -192,7 +200,7 @@ static int chain_crosses(const gr_rings *r, size_t tg, size_t tg2, const double 
     size_t len = gr_ring_len(r, i), st = r->start[i];
     const double *p = gr_ring_xy(r, i);
     for (size_t k = 0; k < len; k++) {
-      size_t k1 = (k + 1) % len;
+      size_t k1 = gr_ring_next(k, len);
       if (st + k == tg || st + k1 == tg || st + k == tg2 || st + k1 == tg2) continue;
       const double *a = p + 2 * k, *b = p + 2 * k1;
       if (fmax(a[0], b[0]) < lo[0] || fmin(a[0], b[0]) > hi[0] || fmax(a[1], b[1]) < lo[1] || fmin(a[1], b[1]) > hi[1])
@@ -216,8 +224,8 @@ static int chain_crosses(const gr_rings *r, size_t tg, size_t tg2, const double 
 static int grow_tip(const gr_rings *r, size_t i, size_t k, int ncap, gr_slice_fn fn, void *ud, double tol,
                     const gr_ms_win *w, double **seq, size_t *m, gr_err *e) {
   size_t len = gr_ring_len(r, i), st = r->start[i];
-  const double *p = gr_ring_xy(r, i), *P = p + 2 * ((k + len - 1) % len), *T1 = p + 2 * k;
-  const double *T2 = p + 2 * ((k + ncap - 1) % len), *N = p + 2 * ((k + ncap) % len);
+  const double *p = gr_ring_xy(r, i), *P = p + 2 * gr_ring_prev(k, len), *T1 = p + 2 * k;
+  const double *T2 = p + 2 * ring_at(k, (size_t)ncap - 1, len), *N = p + 2 * ring_at(k, (size_t)ncap, len);
   *seq = NULL;
   *m = 0;
   double T[2] = {0.5 * (T1[0] + T2[0]), 0.5 * (T1[1] + T2[1])};
@@ -247,7 +255,7 @@ static int grow_tip(const gr_rings *r, size_t i, size_t k, int ncap, gr_slice_fn
     for (size_t j = 0; !rc && j < nout; j++, q++) { s[2 * q] = out[2 * j]; s[2 * q + 1] = out[2 * j + 1]; }
     if (!rc) { s[2 * q] = tp->end[0]; s[2 * q + 1] = tp->end[1]; q++; }
     for (size_t j = nback; !rc && j-- > 0; q++) { s[2 * q] = back[2 * j]; s[2 * q + 1] = back[2 * j + 1]; }
-    if (!rc && chain_crosses(r, st + k, st + (k + ncap - 1) % len, P, s, q, N)) { free(s); s = NULL; q = 0; }
+    if (!rc && chain_crosses(r, st + k, st + ring_at(k, (size_t)ncap - 1, len), P, s, q, N)) { free(s); s = NULL; q = 0; }
     *seq = s;
     *m = q;
   }
@@ -268,7 +276,7 @@ static int rebuild(gr_rings *r, unsigned char **okp, double **seq, const size_t 
     size_t len = gr_ring_len(r, i), st = r->start[i];
     const double *p = gr_ring_xy(r, i);
     for (size_t k = 0; k < len && !rc; k++) {
-      size_t g = st + k, gn = st + (k + 1) % len;
+      size_t g = st + k, gn = st + gr_ring_next(k, len);
       if (drop[g]) continue;
       if (seq[g]) {
         for (size_t j = 0; j < m[g] && !rc; j++) {
@@ -304,14 +312,14 @@ int gr_ms_follow_tips(gr_rings *r, unsigned char **okp, gr_slice_fn fn, void *ud
       for (int ncap = 1; ncap <= 2 && !rc && !seq[st + k]; ncap++) {
         /* the vertices of a grown tip and its neighbours keep their place */
         int free_ = 1;
-        for (size_t j = 0; j < (size_t)ncap + 2; j++) free_ &= !busy[st + (k + len - 1 + j) % len];
+        for (size_t j = 0; j < (size_t)ncap + 2; j++) free_ &= !busy[st + ring_at(k, len - 1 + j, len)];
         if (!free_) break;
         rc = grow_tip(r, i, k, ncap, fn, ud, tol, w, &seq[st + k], &m[st + k], e);
         if (rc || !seq[st + k]) continue;
         ++*grown;
         added += m[st + k];
-        for (size_t j = 0; j < (size_t)ncap + 2; j++) busy[st + (k + len - 1 + j) % len] = 1;
-        if (ncap == 2) drop[st + (k + 1) % len] = 1;
+        for (size_t j = 0; j < (size_t)ncap + 2; j++) busy[st + ring_at(k, len - 1 + j, len)] = 1;
+        if (ncap == 2) drop[st + gr_ring_next(k, len)] = 1;
       }
   }
   if (!rc && *grown) rc = rebuild(r, okp, seq, m, drop, added, e);
