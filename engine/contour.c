@@ -482,8 +482,7 @@ static int all_covered(const gr_rings *sec, const gr_rings *core, double b, doub
   fail[2] = fail[3] = -INFINITY;
   core_edges c = {core, malloc((core->npts + 1) * sizeof *c.nxt), 0, 0, (size_t)-1, b, NULL};
   if (!c.nxt) return gr_fail(e, GR_EMEM, "hatch: out of memory"), -1;
-  for (size_t i = 0; i < core->nrings; i++)
-    for (size_t g = core->start[i], end = core->start[i + 1]; g < end; g++) c.nxt[g] = g + 1 < end ? g + 1 : core->start[i];
+  gr_rings_successors(core, c.nxt);
   int ok = 1;
   double r = b + 0.5 * tol;
   for (size_t i = 0; i < sec->nrings && ok >= 0; i++) {

@@ -1037,11 +1037,16 @@ static int offset_mesh(offset *f, const gr_offset_opts *o, const offset *lk, dou
   return GR_OK;
 }
 
-/* H's vertices (shifted) into vx, vy, vz; a shared H may reach far beyond
- * this field's box: only its part within reach counts. Returns the count. */
 /* Margin (mm) of the vertices a group keeps for its members' checks: far
  * above the rounding of box - shift (1e-15 mm), far below a mesh spacing. */
 #define VNEAR_PAD 1e-6
+
+/* Whether p lies in the box [lo, hi] (NaN does not). */
+static int in_box3(const double p[3], const double lo[3], const double hi[3]) {
+  int in = 1;
+  for (int a = 0; a < 3; a++) in &= p[a] >= lo[a] && p[a] <= hi[a];
+  return in;
+}
 
 /* The vertices of H (its own frame) within [lo, hi], kept in s by the
  * first member that asks, under s's lock; the list when it covers [lo, hi]
@@ -1053,17 +1058,13 @@ static const size_t *near_vertices(lreach_slot *s, const gr_mesh *h, const doubl
     s->vmade = -1;
     size_t *id = malloc((h->nv + 1) * sizeof *id), m = 0;
     for (int a = 0; a < 3; a++) s->vlo[a] = lo[a] - VNEAR_PAD, s->vhi[a] = hi[a] + VNEAR_PAD;
-    for (size_t i = 0; id && i < h->nv; i++) {
-      const double *v = h->v + 3 * i;
-      int in = 1;
-      for (int a = 0; a < 3; a++) in &= v[a] >= s->vlo[a] && v[a] <= s->vhi[a];
-      if (in) id[m++] = i;
-    }
+    for (size_t i = 0; id && i < h->nv; i++)
+      if (in_box3(h->v + 3 * i, s->vlo, s->vhi)) id[m++] = i;
     if (id) s->vid = id, s->nvid = m, s->vmade = 1;
   }
-  pthread_mutex_unlock(&s->mu);
   int cover = s->vmade == 1;
   for (int a = 0; a < 3 && cover; a++) cover = s->vlo[a] + 0.5 * VNEAR_PAD <= lo[a] && hi[a] <= s->vhi[a] - 0.5 * VNEAR_PAD;
+  pthread_mutex_unlock(&s->mu);
   *n = cover ? s->nvid : 0;
   return cover ? s->vid : NULL;
 }
@@ -1076,18 +1077,18 @@ static size_t offset_vertices(const offset *f, const gr_offset_opts *o, int shar
                               double *vx, double *vy, double *vz) {
   size_t m = 0, nc = f->h->nv;
   const size_t *cand = NULL;
+  double blo[3], bhi[3]; /* the box grown by the reach */
+  for (int a = 0; a < 3; a++) blo[a] = o->box_lo[a] - reach, bhi[a] = o->box_hi[a] + reach;
   if (shared && lrs) {
     double lo[3], hi[3];
-    for (int a = 0; a < 3; a++) lo[a] = o->box_lo[a] - reach - f->shift[a], hi[a] = o->box_hi[a] + reach - f->shift[a];
+    for (int a = 0; a < 3; a++) lo[a] = blo[a] - f->shift[a], hi[a] = bhi[a] - f->shift[a];
     cand = near_vertices(lrs, f->h, lo, hi, &nc);
     if (!cand) nc = f->h->nv;
   }
   for (size_t c = 0; c < nc; c++) {
     size_t i = cand ? cand[c] : c;
     double p[3] = {f->h->v[3 * i] + f->shift[0], f->h->v[3 * i + 1] + f->shift[1], f->h->v[3 * i + 2] + f->shift[2]};
-    int in = 1;
-    for (int a = 0; a < 3 && shared; a++) in &= p[a] >= o->box_lo[a] - reach && p[a] <= o->box_hi[a] + reach;
-    if (!in) continue;
+    if (shared && !in_box3(p, blo, bhi)) continue;
     vx[m] = p[0]; vy[m] = p[1]; vz[m] = p[2];
     m++;
   }

@@ -574,7 +574,7 @@ void gr_ms_chord_corner(const double *p0, const double *a, const double *b, cons
 static void chord_corner_of(const gr_rings *r, size_t i, size_t g, double c[2]) {
   size_t len = gr_ring_len(r, i), k = g - r->start[i];
   const double *p = gr_ring_xy(r, i);
-  gr_ms_chord_corner(p + 2 * gr_ring_prev(k, len), p + 2 * k, p + 2 * gr_ring_next(k, len), p + 2 * gr_ring_next(gr_ring_next(k, len), len), c);
+  gr_ms_chord_corner(p + 2 * gr_ring_prev(k, len), p + 2 * k, p + 2 * gr_ring_next(k, len), p + 2 * gr_ring_at(k, 2, len), c);
 }
 
 /* Chords whose bracket (+-half the chord along the normal) has one sign at

@@ -271,8 +271,7 @@ static int rings_meet(const gr_rings *r, double bs) {
   size_t *nxt = malloc(ns * sizeof *nxt);
   int *box = malloc(4 * ns * sizeof *box), res = -1;
   if (!cnt || !box || !nxt) goto done;
-  for (size_t i = 0; i < r->nrings; i++)
-    for (size_t k = r->start[i], end = r->start[i + 1]; k < end; k++) nxt[k] = k + 1 < end ? k + 1 : r->start[i];
+  gr_rings_successors(r, nxt);
   for (size_t s = 0; s < ns; s++) {
     const double *a = r->xy + 2 * s, *b = r->xy + 2 * nxt[s];
     int *o = box + 4 * s;

@@ -183,6 +183,11 @@ int gr_rings_copy(gr_rings *dst, const gr_rings *src) {
 
 double gr_seg_dist(const double *p, const double *a, const double *b) { return sqrt(gr_seg_dist2(p, a, b)); }
 
+void gr_rings_successors(const gr_rings *r, size_t *nxt) {
+  for (size_t i = 0; i < r->nrings; i++)
+    for (size_t k = r->start[i], end = r->start[i + 1]; k < end; k++) nxt[k] = k + 1 < end ? k + 1 : r->start[i];
+}
+
 /* The point strictly between a and b (indices into p) farthest from the
  * segment pa-pb and farther than tol from it (0: none). No division per
  * point: a point whose foot falls inside the segment is farther than the

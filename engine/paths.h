@@ -39,11 +39,19 @@ static inline const double *gr_ring_xy(const gr_rings *r, size_t i) { return r->
  * loops over every point of a section. */
 static inline size_t gr_ring_next(size_t k, size_t n) { return k + 1 < n ? k + 1 : 0; }
 static inline size_t gr_ring_prev(size_t k, size_t n) { return k ? k - 1 : n - 1; }
+/* (k + d) modulo n for k < n and a small d >= 0, without a division. */
+static inline size_t gr_ring_at(size_t k, size_t d, size_t n) {
+  size_t x = k + d;
+  while (x >= n) x -= n;
+  return x;
+}
 double gr_ring_area(const gr_rings *r, size_t i);   /* signed, CCW > 0, mm^2 */
 double gr_ring_length(const gr_rings *r, size_t i); /* perimeter, mm */
 /* Sum of signed areas: with correct orientation, the area of the region. */
 double gr_rings_area(const gr_rings *r);
 /* Distance from point p to segment a-b (mm). */
+/* nxt[k] (r->npts entries): the point after k on its ring (global indices). */
+void gr_rings_successors(const gr_rings *r, size_t *nxt);
 double gr_seg_dist(const double *p, const double *a, const double *b);
 /* Its square (no root: for comparisons with a squared bound). */
 static inline double gr_seg_dist2(const double *p, const double *a, const double *b) {

@@ -641,7 +641,7 @@ static int offset_corners(gr_rings *r, poly_dist *d, gr_err *e) {
     const double *p = gr_ring_xy(r, i);
     for (size_t k = 0; k < len && len >= 4; k++) {
       const double *a = p + 2 * k, *b = p + 2 * gr_ring_next(k, len);
-      const double *a0 = p + 2 * gr_ring_prev(k, len), *b1 = p + 2 * gr_ring_next(gr_ring_next(k, len), len);
+      const double *a0 = p + 2 * gr_ring_prev(k, len), *b1 = p + 2 * gr_ring_at(k, 2, len);
       /* most vertices: the neighbouring chords turn by less (no corner) */
       double tx = a[0] - a0[0], ty = a[1] - a0[1], vx = b1[0] - b[0], vy = b1[1] - b[1];
       double turn = (tx * vx + ty * vy) / (hypot(tx, ty) * hypot(vx, vy)); /* cos of the corner's turn */

@@ -29,14 +29,6 @@
 #include <math.h>
 #include <stdlib.h>
 
-/* (k + d) modulo len for k < len and a small d >= 0: no division (these
- * indices are taken for every vertex of every section, twice over). */
-static inline size_t ring_at(size_t k, size_t d, size_t len) {
-  size_t x = k + d;
-  while (x >= len) x -= len;
-  return x;
-}
-
 #define TIP_COS 0.7071   /* cos 45 degrees */
 #define TIP_FIRST 2.5e-4 /* first probe beyond the tip (mm) */
 #define TIP_STEP 1e-3    /* then steps along the crest (mm) */
@@ -225,7 +217,7 @@ static int grow_tip(const gr_rings *r, size_t i, size_t k, int ncap, gr_slice_fn
                     const gr_ms_win *w, double **seq, size_t *m, gr_err *e) {
   size_t len = gr_ring_len(r, i), st = r->start[i];
   const double *p = gr_ring_xy(r, i), *P = p + 2 * gr_ring_prev(k, len), *T1 = p + 2 * k;
-  const double *T2 = p + 2 * ring_at(k, (size_t)ncap - 1, len), *N = p + 2 * ring_at(k, (size_t)ncap, len);
+  const double *T2 = p + 2 * gr_ring_at(k, (size_t)ncap - 1, len), *N = p + 2 * gr_ring_at(k, (size_t)ncap, len);
   *seq = NULL;
   *m = 0;
   double T[2] = {0.5 * (T1[0] + T2[0]), 0.5 * (T1[1] + T2[1])};
@@ -255,7 +247,7 @@ static int grow_tip(const gr_rings *r, size_t i, size_t k, int ncap, gr_slice_fn
     for (size_t j = 0; !rc && j < nout; j++, q++) { s[2 * q] = out[2 * j]; s[2 * q + 1] = out[2 * j + 1]; }
     if (!rc) { s[2 * q] = tp->end[0]; s[2 * q + 1] = tp->end[1]; q++; }
     for (size_t j = nback; !rc && j-- > 0; q++) { s[2 * q] = back[2 * j]; s[2 * q + 1] = back[2 * j + 1]; }
-    if (!rc && chain_crosses(r, st + k, st + ring_at(k, (size_t)ncap - 1, len), P, s, q, N)) { free(s); s = NULL; q = 0; }
+    if (!rc && chain_crosses(r, st + k, st + gr_ring_at(k, (size_t)ncap - 1, len), P, s, q, N)) { free(s); s = NULL; q = 0; }
     *seq = s;
     *m = q;
   }
@@ -312,13 +304,13 @@ int gr_ms_follow_tips(gr_rings *r, unsigned char **okp, gr_slice_fn fn, void *ud
       for (int ncap = 1; ncap <= 2 && !rc && !seq[st + k]; ncap++) {
         /* the vertices of a grown tip and its neighbours keep their place */
         int free_ = 1;
-        for (size_t j = 0; j < (size_t)ncap + 2; j++) free_ &= !busy[st + ring_at(k, len - 1 + j, len)];
+        for (size_t j = 0; j < (size_t)ncap + 2; j++) free_ &= !busy[st + gr_ring_at(k, len - 1 + j, len)];
         if (!free_) break;
         rc = grow_tip(r, i, k, ncap, fn, ud, tol, w, &seq[st + k], &m[st + k], e);
         if (rc || !seq[st + k]) continue;
         ++*grown;
         added += m[st + k];
-        for (size_t j = 0; j < (size_t)ncap + 2; j++) busy[st + ring_at(k, len - 1 + j, len)] = 1;
+        for (size_t j = 0; j < (size_t)ncap + 2; j++) busy[st + gr_ring_at(k, len - 1 + j, len)] = 1;
         if (ncap == 2) drop[st + gr_ring_next(k, len)] = 1;
       }
   }

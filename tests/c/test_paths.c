@@ -84,6 +84,18 @@ TEST(ring_neighbours_wrap) {
   CHECK(gr_ring_next(0, 5) == 1 && gr_ring_next(4, 5) == 0, "next wraps");
   CHECK(gr_ring_prev(0, 5) == 4 && gr_ring_prev(3, 5) == 2, "prev wraps");
   CHECK(gr_ring_next(0, 1) == 0 && gr_ring_prev(0, 1) == 0, "a one-point ring is its own neighbour");
+  for (size_t n = 1; n <= 4; n++)
+    for (size_t k = 0; k < n; k++)
+      for (size_t d = 0; d <= 2 * n + 2; d++)
+        CHECK(gr_ring_at(k, d, n) == (k + d) % n, "gr_ring_at(%zu, %zu, %zu) = %zu", k, d, n, gr_ring_at(k, d, n));
+  /* successors: two rings of 3 and 2 points */
+  gr_rings *r = gr_rings_new();
+  gr_rings_point(r, 0, 0); gr_rings_point(r, 1, 0); gr_rings_point(r, 0, 1); gr_rings_close(r);
+  gr_rings_point(r, 5, 5); gr_rings_point(r, 6, 5); gr_rings_close(r);
+  size_t nxt[5], want[5] = {1, 2, 0, 4, 3};
+  gr_rings_successors(r, nxt);
+  for (int k = 0; k < 5; k++) CHECK(nxt[k] == want[k], "nxt[%d] = %zu, want %zu", k, nxt[k], want[k]);
+  gr_rings_free(r);
 }
 
 TEST(nest_orients_holes) {
