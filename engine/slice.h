@@ -78,6 +78,14 @@ int gr_offset_rings(const gr_rings *in, double b, double cell, gr_rings *out,
  * the true curve by at most this; refined midpoints are inserted where it
  * would not. */
 #define GR_CHORD_TOL 2e-4
+/* The crossing tolerance of the engine's sections (mm): a crossing on a
+ * grid edge is refined (or taken from the nodes' cubic, whose error
+ * estimate must be within it) to 10 nm, a twentieth of GR_CHORD_TOL. At
+ * 1 nm (the slices' default) the cubic's estimate refused half the
+ * crossings of a graded sheet's section, each then solved on the surface:
+ * 4.5 % of a thin voxel-layer's instructions, for contours that moved by
+ * under 10 nm. */
+#define GR_CROSS_TOL 1e-5
 /* The chord tolerance of in-plane offsets (contours, hatch regions; mm):
  * their vertices lie on the offset of the section's polygon, itself within
  * GR_CHORD_TOL of the true section, so a contour's chords lie within

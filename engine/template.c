@@ -320,6 +320,7 @@ int gr_tmpl_layers(const gr_tmpl_in *in, gr_tmpl *t, const gr_field *f, const gr
   so.hi[1] = o[1] + L[1] + m;
   so.cell = h;
   so.refine = 1;
+  so.tol = GR_CROSS_TOL;
   so.chord_tol = GR_CHORD_TOL;
   double box_lo[2] = {0, 0}, box_hi[2] = {L[0], L[1]};
   int rc = GR_OK;

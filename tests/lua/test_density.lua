@@ -46,7 +46,13 @@ t.test("thickness from a VTK field file equals the same thickness as an expressi
   local a = lattice.run(params { thickness = tmp .. "/t.vtk", layer = 0.1, kb = "off" }, tmp .. "/t1.cli")
   local b = lattice.run(params { thickness = "0.1", layer = 0.1, kb = "off" }, tmp .. "/t2.cli")
   t.ok(a.solid_volume_mm3 > 0, "solid")
-  t.near(a.solid_volume_mm3, b.solid_volume_mm3, 1e-6, "same solid (to rounding of the interpolation)")
+  -- the two thicknesses differ by the interpolation's rounding, which can
+  -- tip a crossing between the nodes' cubic and a solve on the surface:
+  -- each is within the crossing tolerance (10 nm) of the true section, so
+  -- the solids differ by at most that over the sheet's two walls (their
+  -- area: the volume over T)
+  local walls = a.solid_volume_mm3 / 0.1
+  t.near(a.solid_volume_mm3, b.solid_volume_mm3, walls * 1e-5, "same solid (to the crossing tolerance)")
   t.ok(not a.density, "no density stats")
 end)
 
