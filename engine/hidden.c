@@ -42,28 +42,47 @@
  * probes that take the node as solid find it. */
 static inline int hid_in(double v) { return v <= HID_ZERO; }
 
-/* Does a grid edge of length h, its ends' values va, vb of one sign and
- * one of them within the guard of zero (the scan's classes tell, and
- * spare the rest of the grid these reads), need probing? vp, vn: the values
- * at the nodes before a and after b (NaN past the grid's border). lip > 0:
- * f's slope is at most lip (a distance: 1), so f can reach zero between the
- * nodes only if |va| + |vb| <= lip h. */
-static inline int edge_suspect(double va, double vb, double vp, double vn, double h, double lip) {
-  if (lip > 0 && fabs(va) + fabs(vb) > lip * h) return 0;
-  double s = hid_in(va) ? 1 : -1; /* s * f rises towards zero */
-  if (s * (2 * va - vp) >= 0 || s * (2 * vb - vn) >= 0) return 1; /* NaN compares false */
-  return fabs(va - vb) > HID_JUMP * h;
+/* Does a grid edge of length h need probing? Its ends' values va, vb must
+ * have one sign (hid_in) and one of them lie within the guard of zero (|v|
+ * <= guard; NaN is neither); vp, vn: the values at the nodes before a and
+ * after b (NaN past the grid's border). lip > 0: f's slope is at most lip (a
+ * distance: 1), so f can reach zero between the nodes only if |va| + |vb|
+ * <= lip h. Then it is suspect where the straight continuation of the edge
+ * before either end (f's slope there) reaches the other sign within the
+ * edge, or the ends jump (differ by more than HID_JUMP h). lim: lip h
+ * (INFINITY without lip). Without
+ * branches: the scan evaluates it at every node of a row at once (the
+ * compiler's vector loop; most of the grid has no suspect edge). */
+static inline int edge_suspect(double va, double vb, double vp, double vn, double h, double lim, double guard) {
+  int ia = hid_in(va), ib = hid_in(vb);
+  int cand = (ia == ib) & ((fabs(va) <= guard) | (fabs(vb) <= guard)) & !(fabs(va) + fabs(vb) > lim);
+  double ta = 2 * va - vp, tb = 2 * vb - vn; /* NaN compares false */
+  int ext = (ia & ((ta >= 0) | (tb >= 0))) | ((!ia) & ((ta <= 0) | (tb <= 0)));
+  return cand & (ext | (fabs(va - vb) > HID_JUMP * h));
 }
 
-/* The scan's classes of the nodes, one byte each: bit 0 inside (hid_in),
- * bit 1 near zero (|v| <= guard; NaN is neither, as in edge_suspect). An
- * edge passes edge_suspect's first test only when its ends share bit 0 and
- * one of them has bit 1: so the candidates are found eight nodes at a time
- * from three words of classes (the nodes, their right and their upper
- * neighbours), and only they are read further; most of the grid (far from
- * zero, or where an edge changes sign) has none. */
-#define NEAR_BITS 0x0202020202020202ull
-#define SIGN_BITS 0x0101010101010101ull
+/* The suspect edges from the nodes c0 .. c1 of row j (all of them inside
+ * the grid) into fl[i]: bit 0 the edge along x from node i, bit 1 the one
+ * along y. nan: a row of NaN, standing for the rows past the grid. */
+static void row_suspects(const gr_ms_grid *g, int j, int c0, int c1, double lip, double guard, const double *nan,
+                         unsigned char *fl) {
+  int nx = g->nx, ny = g->ny;
+  const double *v = g->v + (size_t)nx * j, *vd = j > 0 ? v - nx : nan;
+  const double *vu = j + 1 < ny ? v + nx : nan, *vuu = j + 2 < ny ? v + 2 * (size_t)nx : nan;
+  int up = j + 1 < ny, i0 = c0 > 1 ? c0 : 1, i1 = c1 < nx - 3 ? c1 : nx - 3;
+  double hx = g->hx, hy = g->hy, lx = lip > 0 ? lip * hx : INFINITY, ly = lip > 0 ? lip * hy : INFINITY;
+  for (int i = i0; i <= i1; i++) /* the row's inside: both neighbours along x on the grid */
+    fl[i] = (unsigned char)(edge_suspect(v[i], v[i + 1], v[i - 1], v[i + 2], hx, lx, guard) |
+                            (up & edge_suspect(v[i], vu[i], vd[i], vuu[i], hy, ly, guard)) << 1);
+  for (int i = c0; i <= c1; i++) { /* the row's ends */
+    if (i >= i0 && i <= i1) {
+      i = i1;
+      continue;
+    }
+    int x = i + 1 < nx && edge_suspect(v[i], v[i + 1], i > 0 ? v[i - 1] : NAN, i + 2 < nx ? v[i + 2] : NAN, hx, lx, guard);
+    fl[i] = (unsigned char)(x | (up & edge_suspect(v[i], vu[i], vd[i], vuu[i], hy, ly, guard)) << 1);
+  }
+}
 
 /* Probes of the suspect edges, appended in the order of j, i, then the
  * edge along x before the one along y (the points evaluated, and their
@@ -171,58 +190,35 @@ static void box_range(const gr_ms_grid *g, const double *box, unsigned char *xin
 }
 
 /* The suspect edges of g (edge_suspect) from the nodes in the box, their
- * probes appended to p. */
+ * probes appended to p in the order of j, i, x before y. */
 static int scan_edges(const gr_ms_grid *g, double lip, const double *box, double guard, probes *p) {
   int nx = g->nx, ny = g->ny, r[4];
   size_t nn = (size_t)nx * ny;
-  unsigned char *cls = malloc(nn + (size_t)nx + 8 + (size_t)nx + (size_t)ny), *xin = cls + nn + nx + 8, *yin = xin + nx;
-  if (!cls || !(p->cell = calloc(nn, 1))) {
-    free(cls);
+  unsigned char *fl = malloc((size_t)nx + 8 + (size_t)nx + (size_t)ny), *xin = fl + nx + 8, *yin = xin + nx;
+  double *nan = malloc((size_t)nx * sizeof *nan);
+  if (!fl || !nan || !(p->cell = calloc(nn, 1))) {
+    free(fl);
+    free(nan);
     return GR_EMEM;
   }
-  box_range(g, box, xin, yin, r);
-  /* the rows read: j0 .. j1 + 1; past the last row nx + 8 zero bytes (no
-   * node near) stand for the row above it and for words read past its end */
-  int jr1 = r[3] + 1 < ny ? r[3] + 1 : ny - 1;
-  for (size_t k = (size_t)nx * r[2]; k < (size_t)nx * (jr1 + 1); k++)
-    cls[k] = (unsigned char)(hid_in(g->v[k]) | (fabs(g->v[k]) <= guard) << 1);
-  memset(cls + nn, 0, (size_t)nx + 8);
+  for (int i = 0; i < nx; i++) nan[i] = NAN;
+  box_range(g, box, xin, yin, r); /* the box's columns are the run r[0] .. r[1] */
   int rc = GR_OK;
   for (int j = r[2]; j <= r[3] && !rc; j++) {
     if (!yin[j]) continue;
-    const unsigned char *row = cls + (size_t)nx * j, *up = j + 1 < ny ? row + nx : cls + nn;
-    const double *v = g->v + (size_t)nx * j, *vd = j > 0 ? v - nx : NULL;
-    const double *vu = j + 1 < ny ? v + nx : NULL, *vuu = j + 2 < ny ? v + 2 * (size_t)nx : NULL;
+    row_suspects(g, j, r[0], r[1], lip, guard, nan, fl);
+    memset(fl + r[1] + 1, 0, 8);
     for (int i = r[0]; i <= r[1] && !rc; i++) {
-      /* the candidates among the edges from eight nodes at once: byte k
-       * of m has bit 0 for the edge along x from node i + k, bit 1 for
-       * the one along y (one sign, one end near zero) */
-      uint64_t m = 0;
-      int span = 1;
-      if (i + 8 <= r[1] + 1) {
-        uint64_t a = gr_ms_word(row + i), b = gr_ms_word(row + i + 1), c = gr_ms_word(up + i);
-        m = ((a | b) & NEAR_BITS) >> 1 & ~(a ^ b) & SIGN_BITS;
-        m |= ((a | c) & NEAR_BITS) & ~(a ^ c) << 1 & NEAR_BITS;
-        span = 8;
-      } else {
-        unsigned c0 = row[i], cr = row[i + 1], cu = up[i];
-        m = (((c0 | cr) >> 1) & ~(c0 ^ cr) & 1) | ((c0 | cu) & ~(c0 ^ cu) << 1 & 2);
+      if (!gr_ms_word(fl + i)) { /* most of the row: eight nodes at a time */
+        i += 7;
+        continue;
       }
-      for (; m && !rc; m &= m - 1) {
-        int bit = __builtin_ctzll(m), k = i + bit / 8;
-        if (!xin[k]) continue;
-        if (!(bit & 1)) { /* along x: the byte's bit 1 (along y) comes next */
-          if (k + 1 < nx &&
-              edge_suspect(v[k], v[k + 1], k > 0 ? v[k - 1] : NAN, k + 2 < nx ? v[k + 2] : NAN, g->hx, lip))
-            rc = add_probes(g, k, j, 0, p);
-        } else if (vu && edge_suspect(v[k], vu[k], vd ? vd[k] : NAN, vuu ? vuu[k] : NAN, g->hy, lip)) {
-          rc = add_probes(g, k, j, 1, p);
-        }
-      }
-      i += span - 1;
+      if (fl[i] & 1) rc = add_probes(g, i, j, 0, p);
+      if (!rc && fl[i] & 2) rc = add_probes(g, i, j, 1, p);
     }
   }
-  free(cls);
+  free(fl);
+  free(nan);
   free(p->cell);
   p->cell = NULL;
   return rc;
