@@ -355,7 +355,7 @@ static int cubic_crossing(const gr_ms_grid *g, int i, int j, int dir, double tol
     if (!(xn >= lo && xn <= hi)) xn = 0.5 * (lo + hi);
     double dx = fabs(xn - x);
     x = xn;
-    if (dx < 1e-7) break; /* quadratic: what is left is of order dx^2, below 1e-13 */
+    if (dx < 1e-4) break; /* quadratic: what is left is of order dx^2, below 1e-8 (0.25 pm at h = 25 um) */
   }
   dp = d1 + d2 / 2 * (2 * x + 1) + d3 / 6 * (3 * x * x - 1);
   if (!(d4 < tol * fabs(dp)) || !(x >= 0 && x <= 1)) return 0;

@@ -85,7 +85,7 @@ int gr_ms_emit_ring(gr_rings *out, double *xy, size_t n);
 int gr_ms_check_window(const double lo[2], const double hi[2], double cell, double tol, gr_err *e);
 
 /* Eight bytes of per-node flags from p as one word (any alignment), for
- * the scans that test eight nodes at once (march.c, hidden.c). */
+ * the scans that test eight nodes at once (march.c, hidden.c, cptab.c). */
 static inline uint64_t gr_ms_word(const unsigned char *p) {
   uint64_t w;
   memcpy(&w, p, sizeof w);
