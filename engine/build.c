@@ -242,17 +242,26 @@ static void share_key(const gr_job *j, int c, char *key, size_t n) {
            round(phase / 1e-9) * 1e-9, cl->t->nl, cl->t->j0);
 }
 
-/* Work items for the classes cs[0..nc): chunks of 5 layers, enough for every core. */
+/* Work items for the classes cs[0..nc): chunks of WORK_LAYERS layers (enough
+ * items for every core), in the order of the chunks, then of the classes:
+ * items one after another read the same layers of the shared closest-point
+ * table (cptab.h, 0.2 MB a layer), which stay in the core's cache. (Class
+ * by class, each class read every layer from memory again: 2 % of a
+ * continuous job's time.) */
+#define WORK_LAYERS 5
 static int make_work(gr_build *a, const int *cs, int nc, gr_err *e) {
   const gr_job *j = a->j;
   size_t cap = 0;
   free(a->wc); free(a->wa); free(a->wb);
   a->wc = a->wa = a->wb = NULL;
   a->nwork = 0;
-  for (int q = 0; q < nc; q++) {
-    const gr_vclass *cl = &j->cls[cs[q]];
-    int sa = a->lb > 0 ? a->la : 0, sb = a->lb > 0 && a->lb < cl->t->nl ? a->lb : cl->t->nl;
-    for (int s = sa; s < sb; s += 5) {
+  int sa = a->lb > 0 ? a->la : 0, top = 0;
+  for (int q = 0; q < nc; q++) top = j->cls[cs[q]].t->nl > top ? j->cls[cs[q]].t->nl : top;
+  for (int s = sa; s < top; s += WORK_LAYERS)
+    for (int q = 0; q < nc; q++) {
+      const gr_vclass *cl = &j->cls[cs[q]];
+      int sb = a->lb > 0 && a->lb < cl->t->nl ? a->lb : cl->t->nl;
+      if (s >= sb) continue;
       if ((size_t)a->nwork + 1 > cap) {
         cap = cap ? 2 * cap : 64;
         int *wc = realloc(a->wc, cap * sizeof *wc), *wa = realloc(a->wa, cap * sizeof *wa), *wb = realloc(a->wb, cap * sizeof *wb);
@@ -263,10 +272,9 @@ static int make_work(gr_build *a, const int *cs, int nc, gr_err *e) {
       }
       a->wc[a->nwork] = cs[q];
       a->wa[a->nwork] = s;
-      a->wb[a->nwork] = s + 5 < sb ? s + 5 : sb;
+      a->wb[a->nwork] = s + WORK_LAYERS < sb ? s + WORK_LAYERS : sb;
       a->nwork++;
     }
-  }
   return GR_OK;
 }
 
