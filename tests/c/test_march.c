@@ -9,6 +9,7 @@
  * zero set, at every delta and position of the root between nodes. */
 #include "check.h"
 #include "slice.h"
+#include "march.h"
 #include <stdlib.h>
 
 typedef struct kinked { double a0, tilt, delta, exact; } kinked;
@@ -284,10 +285,54 @@ TEST(crossings_from_the_nodes_cubic) {
   kinked_sweep(43, 10, 1, " with the cubic on"); /* 1 nm to 20 um */
 }
 
+/* The hidden-boundary scan (hidden.c): a void sliver narrower than the
+ * grid along a line between two columns (or rows), f = |x - s| - w / 2,
+ * has every node outside; only the probes between the nodes find it. It
+ * must be found wherever it lies: between the first two or the last two
+ * columns or rows as well as inside (the scan tests a row's ends apart
+ * from its inside, and the last row has no edges along y), with lip = 0
+ * and with f's slope bound lip = 1; and not found when the sliver is
+ * shallower than the probes' depth (1 um) or absent. */
+typedef struct sliver { double s, w; int along_y; } sliver;
+
+static int sliver_fn(void *ud, size_t n, const double *x, const double *y, double *out, gr_err *e) {
+  (void)e;
+  const sliver *c = ud;
+  for (size_t i = 0; i < n; i++) out[i] = fabs((c->along_y ? y[i] : x[i]) - c->s) - c->w / 2;
+  return GR_OK;
+}
+
+TEST(hidden_slivers_at_every_border) {
+  enum { N = 12 };
+  double h = 0.1, v[N * N];
+  for (int along_y = 0; along_y < 2; along_y++)
+    for (int gap = 0; gap < N - 1; gap++)
+      for (int kind = 0; kind < 3; kind++) { /* a sliver 20 um wide, one 1.6 um wide (0.8 um deep), none */
+        sliver c = {(gap + 0.5) * h, kind == 0 ? 0.02 : kind == 1 ? 0.0016 : -0.2, along_y};
+        gr_ms_grid g = {N, N, 0, 0, h, h, v, 0};
+        for (int j = 0; j < N; j++)
+          for (int i = 0; i < N; i++) {
+            double x = i * h, y = j * h;
+            sliver_fn(&c, 1, &x, &y, v + i + N * j, NULL);
+          }
+        for (int lip = 0; lip < 2; lip++) {
+          int hidden = -1;
+          gr_err e;
+          gr_err_clear(&e);
+          int rc = gr_ms_hidden(&g, lip, NULL, sliver_fn, &c, &hidden, &e);
+          CHECK(rc == GR_OK, "scan failed: %s", e.msg);
+          CHECK(hidden == (kind == 0), "%s sliver between %s %d and %d, lip %d: hidden %d",
+                kind == 0 ? "a 20 um" : kind == 1 ? "a 0.8 um deep" : "no", along_y ? "rows" : "columns", gap,
+                gap + 1, lip, hidden);
+        }
+      }
+}
+
 int main(void) {
   RUN(newton_kink_before_root);
   RUN(crossings_from_the_nodes_cubic);
   RUN(newton_one_evaluation_when_smooth);
   RUN(chords_judged_by_neighbours);
+  RUN(hidden_slivers_at_every_border);
   DONE();
 }
