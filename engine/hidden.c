@@ -47,12 +47,12 @@ static inline int hid_in(double v) { return v <= HID_ZERO; }
  * <= guard; NaN is neither); vp, vn: the values at the nodes before a and
  * after b (NaN past the grid's border). lip > 0: f's slope is at most lip (a
  * distance: 1), so f can reach zero between the nodes only if |va| + |vb|
- * <= lip h. Then it is suspect where the straight continuation of the edge
- * before either end (f's slope there) reaches the other sign within the
- * edge, or the ends jump (differ by more than HID_JUMP h). lim: lip h
- * (INFINITY without lip). Without
- * branches: the scan evaluates it at every node of a row at once (the
- * compiler's vector loop; most of the grid has no suspect edge). */
+ * <= lim = lip h (lim = INFINITY without lip). Then it is suspect where the
+ * straight continuation of the edge before either end (f's slope there)
+ * reaches the other sign within the edge, or the ends jump (differ by more
+ * than HID_JUMP h). Without branches: the scan evaluates it at every node
+ * of a row at once (the compiler's vector loop; most of the grid has no
+ * suspect edge). */
 static inline int edge_suspect(double va, double vb, double vp, double vn, double h, double lim, double guard) {
   int ia = hid_in(va), ib = hid_in(vb);
   int cand = (ia == ib) & ((fabs(va) <= guard) | (fabs(vb) <= guard)) & !(fabs(va) + fabs(vb) > lim);
@@ -79,7 +79,8 @@ static void row_suspects(const gr_ms_grid *g, int j, int c0, int c1, double lip,
       i = i1;
       continue;
     }
-    int x = i + 1 < nx && edge_suspect(v[i], v[i + 1], i > 0 ? v[i - 1] : NAN, i + 2 < nx ? v[i + 2] : NAN, hx, lx, guard);
+    double vp = i > 0 ? v[i - 1] : NAN, vn = i + 2 < nx ? v[i + 2] : NAN;
+    int x = i + 1 < nx && edge_suspect(v[i], v[i + 1], vp, vn, hx, lx, guard);
     fl[i] = (unsigned char)(x | (up & edge_suspect(v[i], vu[i], vd[i], vuu[i], hy, ly, guard)) << 1);
   }
 }
