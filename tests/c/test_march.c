@@ -36,10 +36,12 @@ static int kinked_fn(void *ud, size_t n, const double *x, const double *y, doubl
   return kinked_grad(ud, n, x, y, out, NULL, NULL, e);
 }
 
-/* Slice the window [0, 0.3] x [0, 3] (grid 0.025 mm) and return the worst
- * distance of a ring point from the line x = a0 + tilt y. */
-static double worst_offset(kinked *k, int *npts, gr_err *e) {
+/* Slice the window [0, 0.3] x [0, 3] (grid 0.025 mm, crossing tolerance
+ * tol) and return the worst distance of a ring point from the line
+ * x = a0 + tilt y. */
+static double worst_offset(kinked *k, double tol, int *npts, gr_err *e) {
   gr_slice_opts o = gr_slice_defaults();
+  o.tol = tol;
   o.exact = k->exact;
   o.lo[0] = 0;
   o.lo[1] = 0;
@@ -80,14 +82,14 @@ static double worst_offset(kinked *k, int *npts, gr_err *e) {
 /* Kinks delta = 1 nm * 10^(d / per), d = 0 .. steps, past the root of every
  * row (exact: gr_slice_opts.exact): every crossing within the tolerance of
  * the zero set. */
-static void kinked_sweep(int steps, double per, double exact, const char *what) {
+static void kinked_sweep(int steps, double per, double exact, double tol, const char *what) {
   gr_err e;
-  double worst = 0, tol = gr_slice_defaults().tol;
+  double worst = 0;
   int total = 0;
   for (int d = 0; d <= steps; d++) {
     kinked k = {0.100002, 5e-5, 1e-6 * pow(10, d / per), exact};
     int n;
-    double w = worst_offset(&k, &n, &e);
+    double w = worst_offset(&k, tol, &n, &e);
     CHECK(n > 100, "delta %g mm: %d ring points (%s)", k.delta, n, e.msg);
     worst = fmax(worst, w);
     total += n;
@@ -103,7 +105,7 @@ TEST(newton_kink_before_root) {
    * node along x (u = 2e-6 + 5e-5 y mm past it, 121 rows): the first point
    * tried falls past the kink when u is small. Accepting every step under
    * 0.1 um unchecked puts crossings 32 nm off here. */
-  kinked_sweep(40, 20, 0, "");
+  kinked_sweep(40, 20, 0, gr_slice_defaults().tol, "");
 }
 
 /* A circle of radius R about c, f = |p - c| - R; its gradient scaled by
@@ -248,9 +250,11 @@ TEST(chords_judged_by_neighbours) {
  * 20 um past the root, as the medial surface makes one) the fourth
  * differences see it and the crossing is refined on the field; nodes beyond
  * `exact` (bounds, here clamped values) are not used. */
-TEST(crossings_from_the_nodes_cubic) {
+/* The circles at crossing tolerance tol: every crossing within it of the
+ * circle, and (R >= 0.6 mm) most crossings from the nodes' cubic; the
+ * points evaluated per crossing into per[k]. */
+static void cubic_circles(double tol, double per_out[3]) {
   gr_err e;
-  double tol = gr_slice_defaults().tol;
   for (int k = 0; k < 3; k++) {
     circ c = {1.0013, 0.9871, 0.3 + 0.3 * k, 1, 0};
     gr_slice_opts o;
@@ -258,6 +262,7 @@ TEST(crossings_from_the_nodes_cubic) {
     gr_rings *r = gr_rings_new();
     CHECK(v && r, "out of memory");
     if (!v || !r) { free(v); gr_rings_free(r); return; }
+    o.tol = tol;
     int nx, ny;
     double hx, hy;
     gr_slice_grid_size(&o, &nx, &ny, &hx, &hy);
@@ -272,17 +277,30 @@ TEST(crossings_from_the_nodes_cubic) {
         worst = fmax(worst, fabs(hypot(r->xy[2 * q] - c.cx, r->xy[2 * q + 1] - c.cy) - c.R));
       per = (double)c.npts / (double)r->npts;
     }
-    printf("  info: circle R %.1f mm, crossings from the cubic: %.2f points evaluated per crossing, farthest %.3g nm\n",
-           c.R, per, worst * 1e6);
+    per_out[k] = per;
+    printf("  info: tolerance %g nm, circle R %.1f mm, crossings from the cubic: %.2f points evaluated per crossing, "
+           "farthest %.3g nm\n", tol * 1e6, c.R, per, worst * 1e6);
     CHECK(worst <= tol, "circle R %g: a crossing %.3g nm off (tolerance %.3g nm)", c.R, worst * 1e6, tol * 1e6);
     /* R 0.3: f's fourth derivative along the grid lines is near the
-     * tolerance's limit (about 1 / R^3), most crossings are refined */
+     * 1 nm tolerance's limit (about 1 / R^3), most crossings are refined */
     if (k > 0)
       CHECK(per < 0.5, "circle R %g: %.2f points evaluated per crossing, expected most from the cubic", c.R, per);
     gr_rings_free(r);
     free(v);
   }
-  kinked_sweep(43, 10, 1, " with the cubic on"); /* 1 nm to 20 um */
+}
+
+/* At the slices' default tolerance (1 nm) and at the engine's sections'
+ * (GR_CROSS_TOL, 10 nm): within each, and the wider one takes more
+ * crossings from the cubic (fewer evaluations) on the tightest circle. */
+TEST(crossings_from_the_nodes_cubic) {
+  double fine[3], wide[3];
+  cubic_circles(gr_slice_defaults().tol, fine);
+  cubic_circles(GR_CROSS_TOL, wide);
+  CHECK(wide[0] < fine[0], "R 0.3 mm: %.2f points per crossing at %g nm, %.2f at %g nm", wide[0],
+        GR_CROSS_TOL * 1e6, fine[0], gr_slice_defaults().tol * 1e6);
+  kinked_sweep(43, 10, 1, gr_slice_defaults().tol, " with the cubic on"); /* 1 nm to 20 um */
+  kinked_sweep(43, 10, 1, GR_CROSS_TOL, " with the cubic on, at GR_CROSS_TOL");
 }
 
 /* The hidden-boundary scan (hidden.c): a void sliver narrower than the
