@@ -74,15 +74,16 @@ static void row_suspects(const gr_ms_grid *g, int j, int c0, int c1, double lip,
   for (int i = i0; i <= i1; i++) /* the row's inside: both neighbours along x on the grid */
     fl[i] = (unsigned char)(edge_suspect(v[i], v[i + 1], v[i - 1], v[i + 2], hx, lx, guard) |
                             (up & edge_suspect(v[i], vu[i], vd[i], vuu[i], hy, ly, guard)) << 1);
-  for (int i = c0; i <= c1; i++) { /* the row's ends */
-    if (i >= i0 && i <= i1) {
-      i = i1;
-      continue;
+  /* the row's ends, before and after its inside (a neighbour along x past
+   * the grid: NaN) */
+  int after = i1 + 1 > i0 ? i1 + 1 : i0;
+  int ends[2][2] = {{c0, c1 < i0 - 1 ? c1 : i0 - 1}, {after > c0 ? after : c0, c1}};
+  for (int r = 0; r < 2; r++)
+    for (int i = ends[r][0]; i <= ends[r][1]; i++) {
+      double vp = i > 0 ? v[i - 1] : NAN, vn = i + 2 < nx ? v[i + 2] : NAN;
+      int x = i + 1 < nx && edge_suspect(v[i], v[i + 1], vp, vn, hx, lx, guard);
+      fl[i] = (unsigned char)(x | (up & edge_suspect(v[i], vu[i], vd[i], vuu[i], hy, ly, guard)) << 1);
     }
-    double vp = i > 0 ? v[i - 1] : NAN, vn = i + 2 < nx ? v[i + 2] : NAN;
-    int x = i + 1 < nx && edge_suspect(v[i], v[i + 1], vp, vn, hx, lx, guard);
-    fl[i] = (unsigned char)(x | (up & edge_suspect(v[i], vu[i], vd[i], vuu[i], hy, ly, guard)) << 1);
-  }
 }
 
 /* Probes of the suspect edges, appended in the order of j, i, then the

@@ -49,9 +49,9 @@ double gr_ring_area(const gr_rings *r, size_t i);   /* signed, CCW > 0, mm^2 */
 double gr_ring_length(const gr_rings *r, size_t i); /* perimeter, mm */
 /* Sum of signed areas: with correct orientation, the area of the region. */
 double gr_rings_area(const gr_rings *r);
-/* Distance from point p to segment a-b (mm). */
 /* nxt[k] (r->npts entries): the point after k on its ring (global indices). */
 void gr_rings_successors(const gr_rings *r, size_t *nxt);
+/* Distance from point p to segment a-b (mm). */
 double gr_seg_dist(const double *p, const double *a, const double *b);
 /* Its square (no root: for comparisons with a squared bound). */
 static inline double gr_seg_dist2(const double *p, const double *a, const double *b) {

@@ -300,19 +300,21 @@ int gr_ms_follow_tips(gr_rings *r, unsigned char **okp, gr_slice_fn fn, void *ud
   int rc = seq && m && busy && drop ? GR_OK : gr_fail(e, GR_EMEM, "out of memory following tips");
   for (size_t i = 0; i < r->nrings && !rc; i++) {
     size_t len = gr_ring_len(r, i), st = r->start[i];
-    for (size_t k = 0; k < len && !rc && len >= 3; k++)
+    for (size_t k = 0; k < len && !rc && len >= 3; k++) {
+      size_t kp = gr_ring_prev(k, len); /* the tip's first vertex's neighbour before it */
       for (int ncap = 1; ncap <= 2 && !rc && !seq[st + k]; ncap++) {
         /* the vertices of a grown tip and its neighbours keep their place */
         int free_ = 1;
-        for (size_t j = 0; j < (size_t)ncap + 2; j++) free_ &= !busy[st + gr_ring_at(k, len - 1 + j, len)];
+        for (size_t j = 0; j < (size_t)ncap + 2; j++) free_ &= !busy[st + gr_ring_at(kp, j, len)];
         if (!free_) break;
         rc = grow_tip(r, i, k, ncap, fn, ud, tol, w, &seq[st + k], &m[st + k], e);
         if (rc || !seq[st + k]) continue;
         ++*grown;
         added += m[st + k];
-        for (size_t j = 0; j < (size_t)ncap + 2; j++) busy[st + gr_ring_at(k, len - 1 + j, len)] = 1;
+        for (size_t j = 0; j < (size_t)ncap + 2; j++) busy[st + gr_ring_at(kp, j, len)] = 1;
         if (ncap == 2) drop[st + gr_ring_next(k, len)] = 1;
       }
+    }
   }
   if (!rc && *grown) rc = rebuild(r, okp, seq, m, drop, added, e);
   for (size_t g = 0; seq && g < n0; g++) free(seq[g]);
