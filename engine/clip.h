@@ -26,6 +26,19 @@ int gr_clip_open_dir(int dir);
 int gr_clip_poly(const double *p, size_t n, int closed, int kind, int dir,
                  const double lo[2], const double hi[2], gr_layer *out,
                  double **buf, size_t *cap);
+/* Points this close to a box side (mm) are put on it by gr_clip_ring_owned:
+ * two voxels' templates put a contour along their shared face within
+ * rounding of it (1e-15 mm measured), far below this. */
+#define GR_CLIP_SNAP 1e-9
+/* As gr_clip_poly for a closed ring (kind, dir as there) whose inside lies
+ * on its left (outer rings counter-clockwise, holes clockwise), except on the
+ * box's sides: its points within GR_CLIP_SNAP of a side are put on the side,
+ * and an edge lying on a side is kept only if the ring's inside is towards
+ * the box. A contour running along a face shared by two voxels (a domain's
+ * face on a voxel face, offset by the beam offset or not) is then scanned
+ * once, by the voxel whose section it bounds, not by both. */
+int gr_clip_ring_owned(const double *p, size_t n, int kind, int dir, const double lo[2], const double hi[2],
+                       gr_layer *out, double **buf, size_t *cap);
 /* Area of the region bounded by `r` (signed ring areas) inside the box, mm^2. */
 double gr_clip_area(const gr_rings *r, const double lo[2], const double hi[2]);
 

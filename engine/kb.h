@@ -83,11 +83,13 @@ void gr_sha256_hex(const void *data, size_t n, char out[65]);
  * narrower window is back (b + (n - 1) d, at least 2b, and two cells; face
  * steps and grid offsets treat a cut's sides as no walls, 2026-11-29), 25
  * since sections' crossings are refined to 10 nm instead of 1 nm
- * (GR_CROSS_TOL, 2026-11-30).
+ * (GR_CROSS_TOL, 2026-11-30), 26 since a contour along a voxel side is
+ * kept only by the voxel whose section it bounds and a clipped contour has
+ * no repeated points (gr_clip_ring_owned, 2026-11-30).
  * A template whose
  * signature begins otherwise was built under an older rule: its key is never
  * asked for again, `gradus kb list` marks it stale and prune removes it. */
-#define GR_TEMPLATE_GEOMETRY "{gradus_template: 25, grading: voxel-owned,"
+#define GR_TEMPLATE_GEOMETRY "{gradus_template: 26, grading: voxel-owned,"
 /* 1 when a signature is a Gradus template's of an older engine geometry
  * (it begins with "{gradus_template: " but not with GR_TEMPLATE_GEOMETRY). */
 int gr_kb_stale(const char *signature);

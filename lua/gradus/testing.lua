@@ -145,6 +145,18 @@ function M.contour_check(layer, o)
   return rep
 end
 
+-- Iterator over the segments of a layer's blocks of one kind: x0, y0, x1, y1.
+function M.segments(layer, kind)
+  return coroutine.wrap(function()
+    for _, b in ipairs(layer:blocks()) do
+      if b.kind == kind then
+        local p = b.points
+        for q = 1, #p - 3, 2 do coroutine.yield(p[q], p[q + 1], p[q + 2], p[q + 3]) end
+      end
+    end
+  end)
+end
+
 -- The segments of a layer's blocks of one kind in cells of h mm: key -> list.
 function M.seg_cells(layer, kind, h)
   local cells = {}

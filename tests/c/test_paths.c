@@ -3,9 +3,11 @@
  * simplified ring and needs about as many chords as a circle's analytic
  * count; collinear runs collapse to their corners; repeated points do not
  * upset it. Ring neighbours wrap (gr_ring_next / gr_ring_prev). Nesting
- * orients outer rings counter-clockwise and holes clockwise. */
+ * orients outer rings counter-clockwise and holes clockwise. A contour lying
+ * along the side two voxel squares share is clipped into one of them only. */
 #include "check.h"
 #include "paths.h"
+#include "clip.h"
 #include <stdlib.h>
 
 /* The largest distance from the points of ring 0 of a to the edges of
@@ -121,10 +123,70 @@ TEST(nest_orients_holes) {
   gr_rings_free(r);
 }
 
+/* Length of the pieces in l, and how much of it lies on the line x = 1. */
+static double pieces_len(const gr_layer *l, double *on_side) {
+  double len = 0;
+  *on_side = 0;
+  for (size_t b = 0; b < l->nb; b++) {
+    const double *p = l->xy + 2 * l->b[b].start;
+    for (size_t k = 0; k + 1 < l->b[b].n; k++) {
+      double d = hypot(p[2 * k + 2] - p[2 * k], p[2 * k + 3] - p[2 * k + 1]);
+      len += d;
+      if (fabs(p[2 * k] - 1) < 1e-9 && fabs(p[2 * k + 2] - 1) < 1e-9) *on_side += d;
+    }
+  }
+  return len;
+}
+
+TEST(clip_ring_owned_shared_side) {
+  /* squares A = [0,1]^2 and B = [1,2] x [0,1] share the side x = 1. A
+   * counter-clockwise rectangle [1, 1.6] x [0.2, 0.8] (inside B) and a
+   * clockwise hole [0.5, 1] x [0.2, 0.8] (B's solid lies beyond its side x =
+   * 1: the side bounds B's section), each side at x = 1 + s for s within the
+   * snap (rounding between two voxels' templates): the side goes to B alone,
+   * every edge of the ring is clipped into exactly one square, and the
+   * pieces have no repeated points. gr_clip_poly keeps the side in both. */
+  const double lo[2][2] = {{0, 0}, {1, 0}}, hi[2][2] = {{1, 1}, {2, 1}};
+  const double shift[3] = {0, 4e-10, -4e-10};
+  double *buf = NULL;
+  size_t cap = 0;
+  for (int ring = 0; ring < 2; ring++)
+    for (int v = 0; v < 3; v++) {
+      double x0 = ring ? 0.5 : 1 + shift[v], x1 = ring ? 1 + shift[v] : 1.6;
+      /* counter-clockwise (ring 0) or clockwise (ring 1) */
+      double pts[10] = {x0, 0.2, x1, 0.2, x1, 0.8, x0, 0.8, x0, 0.2};
+      if (ring) { pts[2] = x0; pts[3] = 0.8; pts[6] = x1; pts[7] = 0.2; }
+      double perim = 2 * (x1 - x0) + 1.2, side[2], len[2], plain_side = 0;
+      for (int q = 0; q < 2; q++) {
+        gr_layer *l = gr_layer_new(0), *m = gr_layer_new(0);
+        CHECK(gr_clip_ring_owned(pts, 5, GR_CONTOUR, ring ? 0 : 1, lo[q], hi[q], l, &buf, &cap) == GR_OK, "clip");
+        len[q] = pieces_len(l, &side[q]);
+        for (size_t b = 0; b < l->nb; b++)
+          for (size_t k = 0; k + 1 < l->b[b].n; k++) {
+            const double *p = l->xy + 2 * (l->b[b].start + k);
+            CHECK(p[0] != p[2] || p[1] != p[3], "ring %d shift %d square %d: a repeated point", ring, v, q);
+          }
+        double sd;
+        CHECK(gr_clip_poly(pts, 5, 1, GR_CONTOUR, 1, lo[q], hi[q], m, &buf, &cap) == GR_OK, "clip");
+        pieces_len(m, &sd);
+        plain_side += sd;
+        gr_layer_free(l);
+        gr_layer_free(m);
+      }
+      CHECK(fabs(side[0]) < 1e-12, "ring %d shift %d: A keeps %g of the side", ring, v, side[0]);
+      CHECK(fabs(side[1] - 0.6) < 1e-9, "ring %d shift %d: B keeps %g of the side (0.6)", ring, v, side[1]);
+      CHECK(fabs(len[0] + len[1] - perim) < 1e-9, "ring %d shift %d: pieces %g + %g, the ring %g", ring, v, len[0],
+            len[1], perim);
+      if (v == 0) CHECK(fabs(plain_side - 1.2) < 1e-9, "ring %d: gr_clip_poly keeps %g of the side (both)", ring, plain_side);
+    }
+  free(buf);
+}
+
 int main(void) {
   RUN(simplify_circle_within_tolerance);
   RUN(simplify_square_to_corners);
   RUN(ring_neighbours_wrap);
   RUN(nest_orients_holes);
+  RUN(clip_ring_owned_shared_side);
   DONE();
 }

@@ -140,5 +140,44 @@ t.test("domain=FILE.stl errors name the file", function()
     "sphere%.stl': the part %(2%.8.*%) mm lies outside the box of cells %(20, 0, 0%)%-%(28, 8, 2%); set origin and cells")
 end)
 
+-- The contour pieces of layer g lying on the line x = v (axis 1) or y = v
+-- (axis 2), within 1e-6 mm, as intervals along it.
+local function on_line(layer, axis, v)
+  local iv = {}
+  for x0, y0, x1, y1 in t.segments(layer, "contour") do
+    local a0, a1, s0, s1 = x0, x1, y0, y1
+    if axis == 2 then a0, a1, s0, s1 = y0, y1, x0, x1 end
+    if math.abs(a0 - v) < 1e-6 and math.abs(a1 - v) < 1e-6 and s0 ~= s1 then
+      iv[#iv + 1] = { math.min(s0, s1), math.max(s0, s1) }
+    end
+  end
+  table.sort(iv, function(a, b) return a[1] < b[1] end)
+  return iv
+end
+
+t.test("a contour along a voxel face is scanned once, by the voxel it bounds", function()
+  -- a square part whose contour (the domain's boundary moved in by the beam
+  -- offset) runs along the voxel faces x, y = 2 and 6: each voxel's template
+  -- holds it on its side; before, both voxels of a face scanned it (the part's
+  -- outline twice at beam offset 0, the sides at 2 twice at 0.025)
+  for _, c in ipairs({ { 2, 0 }, { 2.025, 0.025 } }) do
+    local dom = ("max(abs(x-4),abs(y-4))-%g"):format(c[1])
+    local _, kept = lattice.run(params { domain = dom, skin = 0.3, beam_offset = c[2], layers = "10:10",
+      pictures = "10", mode = "exact" }, nil)
+    for axis = 1, 2 do
+      for _, v in ipairs({ 2, 6 }) do
+        local iv, len, reach = on_line(kept[10], axis, v), 0, 2
+        for _, s in ipairs(iv) do
+          t.ok(s[1] >= reach - 1e-6, ("%s, %s = %g: pieces overlap at %.6f"):format(dom, axis == 1 and "x" or "y", v, s[1]))
+          t.ok(s[1] <= reach + 1e-6, ("%s, %s = %g: a gap from %.6f to %.6f"):format(dom, axis == 1 and "x" or "y", v, reach, s[1]))
+          reach = math.max(reach, s[2])
+          len = len + s[2] - s[1]
+        end
+        t.near(len, 4, 1e-5, ("%s: contour length on %s = %g (the side, once)"):format(dom, axis == 1 and "x" or "y", v))
+      end
+    end
+  end
+end)
+
 os.execute("rm -rf '" .. tmp .. "'")
 t.done()

@@ -48,18 +48,13 @@ end
 local function step_runs(layer, c)
   local ax = c.axis == "x" and 1 or 2
   local worst, len = 0, 0
-  for _, bk in ipairs(layer:blocks()) do
-    if bk.kind == "contour" then
-      local P = bk.points
-      for q = 1, #P - 3, 2 do
-        local a0, a1 = P[q + ax - 1], P[q + 2 + ax - 1]
-        local s0, s1 = P[q + 2 - ax], P[q + 4 - ax]
-        local l = math.abs(s1 - s0)
-        if l > 2e-3 and math.abs(a1 - a0) < 1e-6 * l and math.abs(a0 - L) < 2 * b then
-          worst = math.max(worst, math.abs(math.abs(a0 - L) - b))
-          len = len + l
-        end
-      end
+  for x0, y0, x1, y1 in t.segments(layer, "contour") do
+    local a0, a1, s0, s1 = x0, x1, y0, y1
+    if ax == 2 then a0, a1, s0, s1 = y0, y1, x0, x1 end
+    local l = math.abs(s1 - s0)
+    if l > 2e-3 and math.abs(a1 - a0) < 1e-6 * l and math.abs(a0 - L) < 2 * b then
+      worst = math.max(worst, math.abs(math.abs(a0 - L) - b))
+      len = len + l
     end
   end
   return worst, len
