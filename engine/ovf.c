@@ -27,6 +27,8 @@ struct gr_ovf_writer {
   size_t capbpos;
   float *pts;
   size_t cappts;
+  double *dist;         /* a block's distances between successive points */
+  size_t capdist;
   int *used;            /* marking_params_keys used by blocks */
   size_t nused, capused;
   double lo[2], hi[2];  /* bounds of everything written, mm */
@@ -98,16 +100,32 @@ typedef struct plane_acc {
   int have;
 } plane_acc;
 
+/* Sum of d[0], d[step], d[2 step], ... below n, in four running sums (the
+ * additions need not wait for one another). */
+static double sum_every(const double *d, size_t n, size_t step) {
+  double s[4] = {0, 0, 0, 0};
+  size_t k = 0;
+  for (; k + 3 * step < n; k += 4 * step) {
+    s[0] += d[k];
+    s[1] += d[k + step];
+    s[2] += d[k + 2 * step];
+    s[3] += d[k + 3 * step];
+  }
+  for (; k < n; k += step) s[0] += d[k];
+  return (s[0] + s[1]) + (s[2] + s[3]);
+}
+
 /* Points of block b as floats into w->pts, its bounds, lengths and jumps
- * into a: one pass over the points (polylines: a jump to the first point,
- * segments: a jump to each start). */
+ * into a (polylines: a jump to the first point, segments: a jump to each
+ * start). The distances between successive points are taken in a loop of
+ * their own, which the compiler turns into vector square roots (one at a
+ * time, their latency had been most of the OVF writer's time). */
 static void convert_block(gr_ovf_writer *w, const gr_layer *l, const gr_block *b, plane_acc *a) {
   const double *p = l->xy + 2 * b->start;
-  int seg = b->shape == GR_SEGMENTS;
-  double lo0 = a->lo[0], lo1 = a->lo[1], hi0 = a->hi[0], hi1 = a->hi[1], scan = 0, jump = 0, px = a->px, py = a->py;
-  int have = a->have;
+  size_t n = b->n;
+  double lo0 = a->lo[0], lo1 = a->lo[1], hi0 = a->hi[0], hi1 = a->hi[1];
   float *f = w->pts;
-  for (size_t q = 0; q < b->n; q++) {
+  for (size_t q = 0; q < n; q++) {
     double x = p[2 * q], y = p[2 * q + 1];
     f[2 * q] = (float)x;
     f[2 * q + 1] = (float)y;
@@ -115,28 +133,31 @@ static void convert_block(gr_ovf_writer *w, const gr_layer *l, const gr_block *b
     hi0 = x > hi0 ? x : hi0;
     lo1 = y < lo1 ? y : lo1;
     hi1 = y > hi1 ? y : hi1;
-    double d = gr_len2d(x - px, y - py);
-    if (q == 0 || (seg && !(q & 1))) { /* a start: the laser jumps here */
-      if (have) jump += d;
-      have = 1;
-    } else {
-      scan += d;
-    }
-    px = x;
-    py = y;
+  }
+  double *d = w->dist; /* d[q - 1]: from point q - 1 to point q */
+  for (size_t q = 1; q < n; q++) d[q - 1] = gr_len2d(p[2 * q] - p[2 * q - 2], p[2 * q + 1] - p[2 * q - 1]);
+  double lead = n && a->have ? gr_len2d(p[0] - a->px, p[1] - a->py) : 0;
+  if (b->shape == GR_SEGMENTS) { /* d[even]: vectors, d[odd]: jumps between them */
+    a->scan += sum_every(d, n ? n - 1 : 0, 2);
+    a->jump += lead + (n > 2 ? sum_every(d + 1, n - 2, 2) : 0);
+  } else {
+    a->scan += sum_every(d, n ? n - 1 : 0, 1);
+    a->jump += lead;
   }
   a->lo[0] = lo0; a->lo[1] = lo1; a->hi[0] = hi0; a->hi[1] = hi1;
-  a->scan += scan;
-  a->jump += jump;
-  a->px = px;
-  a->py = py;
-  a->have = have;
+  if (n) {
+    a->px = p[2 * n - 2];
+    a->py = p[2 * n - 1];
+    a->have = 1;
+  }
 }
 
 /* Encode block b of l with marking_params_key `key`. */
 static int put_block(gr_ovf_writer *w, const gr_layer *l, const gr_block *b, int key, plane_acc *a, gr_err *e) {
   size_t nf = 2 * b->n;
-  if (gr_grow(&w->pts, &w->cappts, nf + 1, sizeof *w->pts) || note_key(w, key)) return gr_fail(e, GR_EMEM, "out of memory");
+  if (gr_grow(&w->pts, &w->cappts, nf + 1, sizeof *w->pts) || gr_grow(&w->dist, &w->capdist, b->n + 1, sizeof *w->dist) ||
+      note_key(w, key))
+    return gr_fail(e, GR_EMEM, "out of memory");
   convert_block(w, l, b, a);
   OpenVectorFormat__VectorBlock__LineSequence ls = OPEN_VECTOR_FORMAT__VECTOR_BLOCK__LINE_SEQUENCE__INIT;
   OpenVectorFormat__VectorBlock__Hatches ht = OPEN_VECTOR_FORMAT__VECTOR_BLOCK__HATCHES__INIT;
@@ -349,6 +370,7 @@ int gr_ovf_close(gr_ovf_writer *w, int commit, gr_err *e) {
   free(w->planes);
   free(w->bpos);
   free(w->pts);
+  free(w->dist);
   free(w->used);
   free(w);
   return rc;
