@@ -190,6 +190,9 @@ static int l_spec(lua_State *L) {
   const char *in = gr_opt_string(L, 2, "inside", "");
   if (strlen(in) >= sizeof s.inside) return luaL_error(L, "bad option 'inside' (expression too long)");
   strcpy(s.inside, in);
+  if (s.network && in[0])
+    return luaL_error(L, "bad option 'inside' (the inside half-thickness of an asymmetric sheet: a network has one side, "
+                         "grown by thickness)");
   keep_density(L, &s);
   gr_err e;
   gr_err_clear(&e);

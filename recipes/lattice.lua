@@ -11,6 +11,8 @@ local lattice = require "gradus.lattice"
 local p = lattice.params()
 local out = gradus.output("out/lattice.cli")
 local st = lattice.run(p, out)
-print(("%s: %d layers, %d voxels, %d templates (%d built, %d from the knowledge base), %.1f m of scan vectors, est. build %.0f s")
-  :format(out, st.layers, st.voxels, st.templates.unique, st.templates.built, st.templates.reused,
-    (st.vectors.contour.length + st.vectors.hatch.length) / 1000, st.build_time_s))
+-- scan length of every kind (contours, hatches, edges), in m, or in mm under a metre
+local len = st.vectors.contour.length + st.vectors.hatch.length + st.vectors.edge.length
+local scan = len >= 1000 and ("%.1f m"):format(len / 1000) or ("%.1f mm"):format(len)
+print(("%s: %d layers, %d voxels, %d templates (%d built, %d from the knowledge base), %s of scan vectors, est. build %.0f s")
+  :format(out, st.layers, st.voxels, st.templates.unique, st.templates.built, st.templates.reused, scan, st.build_time_s))

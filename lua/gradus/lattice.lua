@@ -36,7 +36,7 @@ M.PARAMS = {
   { "layer", 0.04, { unit = "mm", min = 0.005, max = 1, help = "layer thickness t" } },
   { "hatch", 0.05, { unit = "mm", min = 0.005, max = 2, help = "hatch spacing d" } },
   { "beam_offset", "auto", { auto = "hatch/2", unit = "mm", min = 0, max = 1,
-    help = "contour offset b inside the section boundary (at most cell/4)" } },
+    help = "contour offset b inside the section boundary (at most cell/4, auto too)" } },
   { "angle", 45.0, { unit = "degrees", min = -360, max = 360, help = "hatch angle of layer 1" } },
   { "rotation", 67.0, { unit = "degrees", min = -360, max = 360, help = "hatch angle added per layer" } },
   { "pattern", "parallel", { choices = { "parallel", "zigzag", "island" },
@@ -110,6 +110,16 @@ function M.params(defaults)
   return strict.table(known, values, "the lattice recipe (lattice.params)")
 end
 
+-- Whether parameter k of the checked values q was asked for: given with -D,
+-- or other than its default (the recipe's own, where it declared one).
+local function given(q, k)
+  local ctx = gradus._ctx
+  if ctx and ctx.params and ctx.params[k] ~= nil then return true end
+  local decl = ctx and ctx.decl and ctx.decl.by[k]
+  local d0 = decl and decl.default or DECL[k][2]
+  return strict.fmt(q[k]) ~= strict.fmt(strict.check(k, d0, DECL[k][3], DECL[k][2]))
+end
+
 -- The values of p, checked against the declarations (numbers finite and in
 -- range, choices, vectors converted to tables) and against each other.
 local function checked(p)
@@ -139,12 +149,20 @@ local function checked(p)
   if q.beam_offset ~= "auto" then
     rel(q.beam_offset <= lmin / 4, "parameter 'beam_offset' must be auto (hatch/2) or in [0, %g] mm (cell/4), got %g",
       lmin / 4, q.beam_offset)
+  else -- the automatic offset obeys the same bound (a hatch in cm, or 1.5 for 0.15, would pass unseen)
+    rel(q.hatch / 2 <= lmin / 4,
+      "parameter 'hatch' (%g mm) makes the automatic beam offset hatch/2 = %g mm larger than cell/4 = %g mm: " ..
+      "give a hatch of at most cell/2 = %g mm, or set beam_offset", q.hatch, q.hatch / 2, lmin / 4, lmin / 2)
   end
   if q.slice_cell ~= "auto" then
     rel(q.slice_cell <= q.hatch / 2 and q.slice_cell >= lmax / 4000,
       "parameter 'slice_cell' must be auto (hatch/2) or in [%g, %g] mm (cell/4000 .. hatch/2), got %g",
       lmax / 4000, q.hatch / 2, q.slice_cell)
   end
+  -- size decides the cells: cells given as well would be ignored
+  rel(q.size == "" or not given(q, "cells"),
+    "parameters 'size' and 'cells' both given (size=%s, cells=%s): the part's size decides the cells; give one of them",
+    strict.fmt(q.size), strict.fmt(q.cells))
   rel(not (type(q.cell) == "table" and (q.density ~= "" or q.porosity ~= "")),
     "parameter 'density'/'porosity': design by density needs a cubic cell (the density tables are for cubes), got cell=%s",
     strict.fmt(q.cell))
@@ -209,9 +227,17 @@ local function run(p, out)
   local box = part.box(p)
   local cells, origin = box.cells, p.origin
   local domain = box.domain(domain_of(p.domain, origin, cells, p.cell, p))
+  if not domain and p.skin > 0 then
+    error(("parameter 'skin' (%g mm) is a solid band along the domain's boundary, and there is no domain: "
+      .. "give domain= (an STL file or an expression) or a size= that cuts cells"):format(p.skin), 2)
+  end
   local machine
   if p.machine ~= "" then
     machine = lasers.load(p.machine)
+    if given(p, "lasers") and p.lasers ~= #machine.lasers then
+      error(("parameters 'lasers' and 'machine' both given (lasers=%d, machine=%s with %d): the profile's lasers are used; give one of them")
+        :format(p.lasers, p.machine, #machine.lasers), 2)
+    end
   else
     machine = lasers.default(p.lasers)
   end
@@ -288,17 +314,28 @@ local function run(p, out)
       return not r.skip and (r.surface or p.surface) or nil
     end)
   end
-  local first, last = parse_range(p.layers, box.layers or job:layers())
+  local total = box.layers or job:layers()
+  local first, last = parse_range(p.layers, total)
   if box.layers and last > box.layers then last = box.layers end
-  local keep = {}
-  for item in tostring(p.pictures):gmatch("[^,]+") do keep[#keep + 1] = tonumber(item) end
-  local checks = {}
-  for item in tostring(p.verify):gmatch("[^,]+") do
-    local g = tonumber(item)
-    if not g then error(("bad verify '%s': layer numbers a,b,c expected"):format(tostring(p.verify)), 2) end
-    checks[#checks + 1] = g
-    keep[#keep + 1] = g
+  if first < 1 then error(("bad layers '%s': layers are numbered from 1"):format(tostring(p.layers)), 2) end
+  -- layers to draw (pictures) or check (verify): numbers among the job's layers, or the job would skip them
+  -- unseen (those outside a range of layers=a:b are skipped: a split job's tasks share the parameters)
+  local function layer_list(name)
+    local list = {}
+    for item in tostring(p[name]):gmatch("[^,]+") do
+      local g = tonumber(item)
+      if not g or g ~= math.floor(g) then
+        error(("bad %s '%s': layer numbers a,b,c expected"):format(name, tostring(p[name])), 3)
+      end
+      if g < 1 or g > total then
+        error(("bad %s '%s': layer %d is not one of the job's %d layers"):format(name, tostring(p[name]), g, total), 3)
+      end
+      list[#list + 1] = g
+    end
+    return list
   end
+  local keep, checks = layer_list("pictures"), layer_list("verify")
+  for _, g in ipairs(checks) do keep[#keep + 1] = g end
   local kb = p.kb
   if kb == "" then kb = nil end
   if out then gradus.mkdir(gradus.dirname(out)) end

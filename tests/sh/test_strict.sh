@@ -107,6 +107,15 @@ for c in 2,0,2 2,2 a,b,c 2,nan,2; do # stretched cells (cell=Lx,Ly,Lz)
 done
 check_range "cell=nan" cell=nan "parameter 'cell' must be a number in \[0.1, 100\] mm, got 'nan'"
 check_range "hatch for a 100 mm cell" "cell=100 -D hatch=0.04" "parameter 'hatch' must be at least cell/2000 = 0.05 mm"
+check_range "size and cells both given" "size=5,5,1 -D cells=3,3,1" "parameters 'size' and 'cells' both given \(size=5,5,1, cells=3,3,1\)"
+check_range "lasers beside a machine profile of another count" "lasers=3 -D machine=$ROOT/recipes/machine.yaml" "parameters 'lasers' and 'machine' both given \(lasers=3, machine=.*machine.yaml with 2\)"
+check_range "a skin with no domain" skin=0.3 "parameter 'skin' \(0.3 mm\) is a solid band along the domain's boundary, and there is no domain"
+check_range "an inside thickness for a network" "kind=network -D inside=0.05" "bad option 'inside' \(the inside half-thickness of an asymmetric sheet: a network has one side"
+check_range "a picture of a layer the job does not have" pictures=999 "bad pictures '999': layer 999 is not one of the job's 50 layers"
+check_range "a check of a layer the job does not have" verify=51 "bad verify '51': layer 51 is not one of the job's 50 layers"
+check_range "pictures that are no layer numbers" "pictures=2;3" "bad pictures '2;3': layer numbers a,b,c expected"
+check_range "layer 0" layers=0:2 "bad layers '0:2': layers are numbered from 1"
+check_range "hatch=1.5 (0.15 meant) for a 2 mm cell" hatch=1.5 "parameter 'hatch' \(1.5 mm\) makes the automatic beam offset hatch/2 = 0.75 mm larger than cell/4 = 0.5 mm"
 # NaN set by a recipe (the old sentinels meant "default")
 for k in slice_cell beam_offset skin min_length; do
   printf 'local lattice = require "gradus.lattice"\nlocal p = lattice.params { cells = "1,1,1", kb = "off", layers = "1:2" }\np.%s = 0/0\nlattice.run(p, gradus.output("x.cli"))\n' "$k" > "$d/n.lua"
