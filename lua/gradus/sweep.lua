@@ -151,8 +151,20 @@ function M.command(recipe, plan, n, base)
   return table.concat(cmd, " ")
 end
 
+-- The log's last line that says what went wrong: not the closing remark
+-- that nothing was written (the cause, a misspelled -D with its suggestion,
+-- is the line before it).
+local function last_cause(log)
+  local lines = {}
+  for l in log:gmatch("[^\n]+") do if l:match("%S") then lines[#lines + 1] = l end end
+  for i = #lines, 1, -1 do
+    if not lines[i]:match("^gradus: nothing was written") then return lines[i] end
+  end
+  return lines[#lines] or ""
+end
+
 --- The row of run n from its files: status "ok" (exit status 0 and stats
--- read), else "failed" with the log's last line as the error.
+-- read), else "failed" with the log's last line of cause as the error.
 function M.collect(plan, n, base, status)
   local row = { run = n, status = "failed", params = plan.combos[n], log = base .. ".log" }
   if status == 0 then
@@ -169,8 +181,7 @@ function M.collect(plan, n, base, status)
   if lf then lf:close() end
   -- Slurm's own word on a task it ended (cancelled, time limit, node
   -- failure, out of memory) beats whatever the shell printed last
-  row.error = log:match("[^\n]*%*%*%* JOB [^\n]*%*%*%*") or log:match("[^\n]*oom%-kill[^\n]*")
-    or (log:gsub("%s+$", "")):match("[^\n]*$")
+  row.error = log:match("[^\n]*%*%*%* JOB [^\n]*%*%*%*") or log:match("[^\n]*oom%-kill[^\n]*") or last_cause(log)
   if row.error == "" then
     row.error = status and ("exit status " .. status) or "no exit status (the task was killed, timed out or never ran)"
   end

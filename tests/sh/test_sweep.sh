@@ -59,6 +59,10 @@ printf 'working\nslurmstepd: error: *** JOB 5 ON n1 CANCELLED AT 2026-01-01T00:0
 got=$(echo "local r = require('gradus.sweep').collect({ combos = { {} } }, 1, '$d/run001', nil) print(r.status .. ': ' .. r.error)" | $G 2>&1 | tail -n 1)
 [ "$got" = "failed: slurmstepd: error: *** JOB 5 ON n1 CANCELLED AT 2026-01-01T00:00:00 DUE TO TIME LIMIT ***" ] &&
   pass "Slurm's reason taken from a task's log" || fail "Slurm's reason from the log" "$got"
+# a misspelled -D: every run fails, and the summary says which name (not only that nothing was written)
+out=$($G sweep recipes/lattice.lua -D hatchx=0.05,0.06 -o "$d/s7" -q 2>&1); rc=$?
+[ $rc = 1 ] && echo "$out" | grep -qF "sweep: failed run 1 (hatchx=0.05): gradus: -D hatchx=0.05: recipes/lattice.lua does not declare 'hatchx' (did you mean 'hatch'?)" &&
+  pass "a misspelled parameter named in the summary" || fail "a misspelled parameter named in the summary" "rc=$rc: $out"
 : > "$d/run001.log"
 got=$(echo "local r = require('gradus.sweep').collect({ combos = { {} } }, 1, '$d/run001', nil) print(r.error)" | $G 2>&1 | tail -n 1)
 echo "$got" | grep -q "^no exit status" && pass "no status, empty log: said so" || fail "no status, empty log" "$got"
