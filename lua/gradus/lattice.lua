@@ -169,6 +169,9 @@ local function checked(p)
   return q
 end
 
+-- The output's path without its .cli or .ovf (any case): the manifest's and the pictures' base.
+local function stem(path) return (path:gsub("%.[cC][lL][iI]$", ""):gsub("%.[oO][vV][fF]$", "")) end
+
 local function parse_range(s, n)
   if s == "" then return 1, n end
   local a, b = s:match("^(%d+):(%d+)$")
@@ -338,8 +341,17 @@ local function run(p, out)
   for _, g in ipairs(checks) do keep[#keep + 1] = g end
   local kb = p.kb
   if kb == "" then kb = nil end
+  -- the output's extension and format= must agree (an OVF file named .cli goes to a machine as CLI)
+  local ext = out and out:lower():match("%.(%w+)$")
+  if ext == "ovf" and given(p, "format") and p.format ~= "ovf" then
+    error(("parameter 'format' (%s) and the output %s disagree: a .ovf file is Open Vector Format; name it .cli or drop format")
+      :format(p.format, out), 2)
+  end
+  if ext == "cli" and p.format == "ovf" then
+    error(("parameter 'format' (ovf) and the output %s disagree: Open Vector Format goes to a .ovf file"):format(out), 2)
+  end
   if out then gradus.mkdir(gradus.dirname(out)) end
-  local format = (out and out:lower():match("%.ovf$")) and "ovf" or p.format
+  local format = ext == "ovf" and "ovf" or p.format
   local styles = {}
   for l, las in ipairs(machine.lasers) do
     for kindi, kind in ipairs({ "contour", "hatch", "edge" }) do
@@ -366,7 +378,7 @@ local function run(p, out)
   if #st.warnings == 0 then st.warnings = nil end
   -- manifest: every build style with laser, kind, power, speed
   if out then
-    gradus.yaml.save((out:gsub("%.cli$", ""):gsub("%.ovf$", "")) .. ".manifest.yaml", {
+    gradus.yaml.save(stem(out) .. ".manifest.yaml", {
       cli = out, format = format, form = st.form, units_mm = st.units, layers = st.layers, machine = machine.name,
       styles = styles,
     })
@@ -374,7 +386,7 @@ local function run(p, out)
   local pics = {}
   for _, g in ipairs(keep) do
     if kept[g] and out then
-      local base = (out or "out/layer"):gsub("%.cli$", "")
+      local base = stem(out or "out/layer")
       local path = ("%s_layer%d.svg"):format(base, g)
       gradus.svg.layer(path, kept[g], { title = ("layer %d, z = %.3f mm"):format(g, kept[g]:z()), jumps = true })
       pics[#pics + 1] = path

@@ -116,6 +116,13 @@ check_range "a check of a layer the job does not have" verify=51 "bad verify '51
 check_range "pictures that are no layer numbers" "pictures=2;3" "bad pictures '2;3': layer numbers a,b,c expected"
 check_range "layer 0" layers=0:2 "bad layers '0:2': layers are numbered from 1"
 check_range "hatch=1.5 (0.15 meant) for a 2 mm cell" hatch=1.5 "parameter 'hatch' \(1.5 mm\) makes the automatic beam offset hatch/2 = 0.75 mm larger than cell/4 = 0.5 mm"
+# the output's extension and format= must agree (an OVF file named .cli would go to a machine as CLI)
+out=$($G run "$ROOT/recipes/lattice.lua" $FAST -D format=ovf -o "$d/o.cli" 2>&1); rc=$?
+expect "format=ovf into a .cli file refused" "parameter 'format' \(ovf\) and the output .*o.cli disagree" "$out"
+refused "format=ovf into a .cli file" "$d/o.cli"
+out=$($G run "$ROOT/recipes/lattice.lua" $FAST -D format=binary -o "$d/o.ovf" 2>&1); rc=$?
+expect "format=binary into a .ovf file refused" "parameter 'format' \(binary\) and the output .*o.ovf disagree" "$out"
+refused "format=binary into a .ovf file" "$d/o.ovf"
 # NaN set by a recipe (the old sentinels meant "default")
 for k in slice_cell beam_offset skin min_length; do
   printf 'local lattice = require "gradus.lattice"\nlocal p = lattice.params { cells = "1,1,1", kb = "off", layers = "1:2" }\np.%s = 0/0\nlattice.run(p, gradus.output("x.cli"))\n' "$k" > "$d/n.lua"
