@@ -592,6 +592,8 @@ static int l_run(lua_State *L) {
   }
   /* commit every writer only if everything went well; else remove temporaries */
   const char *form = s.ovf ? "ovf" : s.w[0] ? gr_cli_form(s.w[0]) : NULL;
+  long rpts = 0, rvec = 0; /* zero-length marks the short form's rounding left out */
+  if (s.w[0]) gr_cli_rounded(s.w[0], &rpts, &rvec);
   for (int w = 0; w <= GR_MAX_LASERS; w++) {
     if (!s.w[w]) continue;
     gr_err e2;
@@ -622,6 +624,14 @@ static int l_run(lua_State *L) {
   if (form) { /* what the output holds: ascii, long, short, short+long, ovf */
     lua_pushstring(L, form);
     lua_setfield(L, -2, "form");
+  }
+  if (rpts || rvec) { /* said, since the file then holds fewer points than the stats count */
+    lua_createtable(L, 0, 2);
+    lua_pushinteger(L, rpts);
+    lua_setfield(L, -2, "points");
+    lua_pushinteger(L, rvec);
+    lua_setfield(L, -2, "vectors");
+    lua_setfield(L, -2, "rounded_out");
   }
   lua_newtable(L);
   for (int i = 0; i < nkeep; i++) {

@@ -26,6 +26,7 @@ struct gr_cli_writer {
   gr_cli_header h;
   int layers_written;
   long shorts, longs; /* geometry commands written in short and long form */
+  long rounded_points, rounded_vectors; /* left out by the short form (short_block) */
 };
 
 static const char *const KIND[GR_NKINDS] = {"contour", "hatch", "edge"};
@@ -121,30 +122,54 @@ static long short_of(double v) {
 
 /* Block bk (points p, CLI id) as a short command 129/131 with uint16
  * coordinates; 0 (nothing written) when its id, count or a coordinate does
- * not fit 16 bits: the caller writes the long command instead. */
+ * not fit 16 bits: the caller writes the long command instead. Rounded to
+ * the unit, a polyline's point equal to the one before it is left out (a
+ * polyline that rounds to one point stays a dot of two), and so is a hatch
+ * vector whose ends round to one point: zero-length marks the rounding
+ * made, counted in w->rounded_points / rounded_vectors. */
 static int short_block(gr_cli_writer *w, const gr_block *bk, const double *p, int id, int *done, gr_err *e) {
   double u = w->h.units;
   int seg = bk->shape == GR_SEGMENTS;
   size_t cnt = seg ? bk->n / 2 : bk->n, npts = seg ? 2 * cnt : cnt, hd = seg ? 6 : 8;
   *done = 0;
   if (id < 0 || id > 65535 || cnt > 65535) return GR_OK;
-  /* convert straight into the reserved room; a coordinate that does not
-   * fit abandons it (w->o.n not advanced: nothing written) */
+  for (size_t q = 0; q < 2 * bk->n; q++) if (short_of(p[q] / u) < 0) return GR_OK;
+  /* convert straight into the reserved room */
   if (reserve(w, hd + 4 * npts, e)) return e->code;
-  unsigned char *o = (unsigned char *)w->o.buf + w->o.n;
-  for (size_t q = 0; q < 2 * npts; q++) {
-    long c = short_of(p[q] / u);
-    if (c < 0) return GR_OK;
-    put_u16(o + hd + 2 * q, (unsigned)c);
+  unsigned char *o = (unsigned char *)w->o.buf + w->o.n + hd;
+  size_t kept = 0; /* polylines: points; hatches: vectors */
+  long px = -1, py = -1;
+  for (size_t k = 0; k < cnt; k++) {
+    if (seg) {
+      long c[4];
+      for (int i = 0; i < 4; i++) c[i] = short_of(p[4 * k + i] / u);
+      if (c[0] == c[2] && c[1] == c[3]) continue;
+      for (int i = 0; i < 4; i++) put_u16(o + 8 * kept + 2 * i, (unsigned)c[i]);
+    } else {
+      long cx = short_of(p[2 * k] / u), cy = short_of(p[2 * k + 1] / u);
+      if (cx == px && cy == py) continue;
+      put_u16(o + 4 * kept, (unsigned)cx);
+      put_u16(o + 4 * kept + 2, (unsigned)cy);
+      px = cx;
+      py = cy;
+    }
+    kept++;
   }
-  for (size_t q = 2 * npts; q < 2 * bk->n; q++) if (short_of(p[q] / u) < 0) return GR_OK;
+  if (!seg && kept == 1 && cnt > 1) { /* a dot: its point twice */
+    memcpy(o + 4, o, 4);
+    kept = 2;
+  }
+  if (seg) w->rounded_vectors += (long)(cnt - kept);
+  else w->rounded_points += (long)(cnt - kept);
+  *done = 1;
+  if (kept == 0) return GR_OK; /* every vector rounded to a point: no block */
+  o -= hd;
   put_u16(o, seg ? 131 : 129);
   put_u16(o + 2, (unsigned)id);
   if (!seg) put_u16(o + 4, (unsigned)(bk->shape == GR_OPEN ? 2 : bk->dir));
-  put_u16(o + hd - 2, (unsigned)cnt);
-  w->o.n += hd + 4 * npts;
+  put_u16(o + hd - 2, (unsigned)kept);
+  w->o.n += hd + (seg ? 8 : 4) * kept;
   w->shorts++;
-  *done = 1;
   return GR_OK;
 }
 
@@ -231,6 +256,11 @@ int gr_cli_close(gr_cli_writer *w, int commit, gr_err *e) {
   free(w);
   if (!rc) rc = crc;
   return rc;
+}
+
+void gr_cli_rounded(const gr_cli_writer *w, long *points, long *vectors) {
+  *points = w->rounded_points;
+  *vectors = w->rounded_vectors;
 }
 
 const char *gr_cli_form(const gr_cli_writer *w) {

@@ -54,6 +54,10 @@ int gr_cli_write_layer(gr_cli_writer *w, const gr_layer *l, gr_err *e);
 /* What was written so far: "ascii", "long" (binary long commands), "short"
  * (every geometry command short) or "short+long" (some did not fit). */
 const char *gr_cli_form(const gr_cli_writer *w);
+/* What the short form left out so far: polyline points equal to the one
+ * before them once rounded to the unit, hatch vectors that rounded to one
+ * point (zero-length marks; a polyline that rounds to one point stays a dot). */
+void gr_cli_rounded(const gr_cli_writer *w, long *points, long *vectors);
 /* commit != 0: finish and rename into place; 0: remove the temporary. Frees w. */
 int gr_cli_close(gr_cli_writer *w, int commit, gr_err *e);
 

@@ -215,6 +215,45 @@ t.test("format=binary: the short form where the part fits, said by the manifest,
   same_layers(gradus.cli.read(cli).layers, gradus.cli.read(short).layers, 0.0005 + 1e-6, "long vs short (1 um units)")
 end)
 
+t.test("format=binary: no zero-length mark from rounding to the unit, and the stats say how many were left out", function()
+  -- a graded 2 x 2 x 1 job, 25 layers: about 170 polyline points fall onto the one before them at 1 um
+  local base = ("'%s' run '%s/recipes/lattice.lua' -q -D cells=2,2,1 -D kb=off -D layers=1:25 "
+    .. "-D 'thickness=0.1+0.04*sin(x/3)*cos(y/2.5)'"):format(exe, gradus.root)
+  local short, long = tmp .. "/r.cli", tmp .. "/rl.cli"
+  local ok, out = sh(base .. " -D format=binary -o '" .. short .. "' --stats '" .. tmp .. "/r.yaml'")
+  t.ok(ok, out)
+  ok, out = sh(base .. " -D format=binary-long -o '" .. long .. "'")
+  t.ok(ok, out)
+  local st = gradus.yaml.load(tmp .. "/r.yaml")
+  t.ok(st.rounded_out and st.rounded_out.points > 0, "the job has points that round onto the one before")
+  local function count(path)
+    local pts, vec, marks = 0, 0, 0
+    for _, l in ipairs(gradus.cli.read(path).layers) do
+      for _, b in ipairs(l:blocks()) do
+        local P = b.points
+        if b.shape == "segments" then
+          for q = 1, #P - 3, 4 do
+            vec = vec + 1
+            if P[q] == P[q + 2] and P[q + 1] == P[q + 3] then marks = marks + 1 end
+          end
+        else
+          pts = pts + #P / 2
+          local dot = #P == 4
+          for q = 1, #P - 3, 2 do
+            if not dot and P[q] == P[q + 2] and P[q + 1] == P[q + 3] then marks = marks + 1 end
+          end
+        end
+      end
+    end
+    return pts, vec, marks
+  end
+  local sp, sv, sm = count(short)
+  local lp, lv = count(long)
+  t.eq(sm, 0, "zero-length marks in the short form")
+  t.eq(sp + st.rounded_out.points, lp, "polyline points: the short form's and those left out = the long form's")
+  t.eq(sv + st.rounded_out.vectors, lv, "hatch vectors: the short form's and those left out = the long form's")
+end)
+
 t.test("malformed files: error with file and byte offset, non-zero exit, nothing written", function()
   local cases = {
     { "truncated", bytes:sub(1, #bytes - 5), "past the end" },
