@@ -179,6 +179,12 @@ static int l_plate_write(lua_State *L) {
   gr_lua_setnum(L, "length", in.length);
   lua_pushstring(L, in.form);
   lua_setfield(L, -2, "form");
+  if (in.rounded_points || in.rounded_vectors) {
+    lua_createtable(L, 0, 2);
+    gr_lua_setint(L, "points", in.rounded_points);
+    gr_lua_setint(L, "vectors", in.rounded_vectors);
+    lua_setfield(L, -2, "rounded_out");
+  }
   for (int b = 0; b < 2; b++) {
     const double *v = b ? in.hi : in.lo;
     lua_createtable(L, 3, 0);

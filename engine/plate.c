@@ -366,6 +366,7 @@ int gr_plate_write(gr_plate *p, const char *out, const gr_plate_opts *o, gr_plat
   if (!rc) rc = pl_layers(p, w, num, fl, top, o, info, e);
   if (w) {
     if (!rc) snprintf(info->form, sizeof info->form, "%s", gr_cli_form(w));
+    gr_cli_rounded(w, &info->rounded_points, &info->rounded_vectors);
     int crc = gr_cli_close(w, rc == GR_OK, rc ? NULL : e);
     if (!rc) rc = crc;
   }

@@ -71,6 +71,7 @@ typedef struct gr_plate_info {
   double length;     /* scan length written (mm) */
   gr_layer *kept;    /* a copy of layer opts.keep (caller frees), or NULL */
   char form[16];     /* what the writer wrote: ascii, long, short, short+long */
+  long rounded_points, rounded_vectors; /* left out by the short form (gr_cli_rounded) */
 } gr_plate_info;
 
 /* Merge every part into the CLI `out`. Can be called once per plate (the

@@ -353,6 +353,7 @@ end
 
 local function totals(d, parts, w)
   local st = { plate = d.name, machine = d.machine.name, layers = w.layers, layer_mm = d.layer, form = w.form,
+    rounded_out = w.rounded_out,
     dimension = { w.lo, w.hi }, parts = parts, solid_volume_mm3 = 0, scan_time_s = 0, jump_time_s = 0,
     laser_time_s = 0, length_mm = w.length }
   local bulk = 0
