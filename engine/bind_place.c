@@ -804,7 +804,32 @@ static int l_kb_prune(lua_State *L) {
   return kb_report(L, &po);
 }
 
-static const luaL_Reg place_fns[] = {{"job", l_job}, {NULL, NULL}};
+/* gradus.place.check_size({nx, ny, nz}, cell or {Lx, Ly, Lz}): raises when
+ * the cells are more voxels than a job holds (gr_job_check_size), before a
+ * recipe spends time on a box that large. */
+static int l_check_size(lua_State *L) {
+  luaL_checktype(L, 1, LUA_TTABLE);
+  int n[3];
+  double cell[3];
+  for (int a = 0; a < 3; a++) {
+    lua_rawgeti(L, 1, a + 1);
+    n[a] = (int)luaL_checkinteger(L, -1);
+    lua_pop(L, 1);
+    if (lua_type(L, 2) == LUA_TTABLE) {
+      lua_rawgeti(L, 2, a + 1);
+      cell[a] = luaL_checknumber(L, -1);
+      lua_pop(L, 1);
+    } else {
+      cell[a] = luaL_checknumber(L, 2);
+    }
+  }
+  gr_err e;
+  gr_err_clear(&e);
+  if (gr_job_check_size(n, cell, &e)) return gr_lua_error(L, &e);
+  return 0;
+}
+
+static const luaL_Reg place_fns[] = {{"job", l_job}, {"check_size", l_check_size}, {NULL, NULL}};
 static const luaL_Reg kb_fns[] = {{"list", l_kb_list},       {"show", l_kb_show},
                                   {"verify", l_kb_verify},   {"prune", l_kb_prune},
                                   {"default_dir", l_kb_default_dir}, {NULL, NULL}};

@@ -67,6 +67,16 @@ static double grid_step(const double cell[3], double h) {
   return cell[0] / n0;
 }
 
+int gr_job_check_size(const int n[3], const double cell[3], gr_err *e) {
+  double nvox = (double)n[0] * n[1] * n[2];
+  if (nvox > GR_MAX_VOXELS)
+    return gr_fail(e, GR_EARG,
+                   "cells %d x %d x %d are %.3g voxels, more than a job holds (%.0e): a part of %g x %g x %g mm; "
+                   "give fewer or larger cells",
+                   n[0], n[1], n[2], nvox, GR_MAX_VOXELS, n[0] * cell[0], n[1] * cell[1], n[2] * cell[2]);
+  return GR_OK;
+}
+
 gr_job *gr_job_new(const gr_job_opts *o, gr_err *e) {
   gr_job_opts d = *o;
   for (int a = 0; a < 3; a++)
@@ -75,12 +85,16 @@ gr_job *gr_job_new(const gr_job_opts *o, gr_err *e) {
   for (int a = 0; a < 3; a++)
     if (d.n[a] < 1 || d.n[a] > 100000)
       return gr_fail(e, GR_EARG, "cells must be >= 1 along each axis, got %d,%d,%d", d.n[0], d.n[1], d.n[2]), NULL;
+  if (gr_job_check_size(d.n, d.cell, e)) return NULL;
   if (!(d.hatch > 0) || !isfinite(d.hatch))
     return gr_fail(e, GR_EARG, "hatch spacing must be > 0 mm, got %g", d.hatch), NULL;
   if (!(d.layer > 0) || !isfinite(d.layer))
     return gr_fail(e, GR_EARG, "layer thickness must be > 0 mm, got %g", d.layer), NULL;
   if (d.layer > d.cell[2])
     return gr_fail(e, GR_EARG, "layer thickness %g mm is larger than the cell %g mm", d.layer, d.cell[2]), NULL;
+  if (d.n[2] * d.cell[2] / d.layer > 1e8) /* (the layer count is an int) */
+    return gr_fail(e, GR_EARG, "%g mm in layers of %g mm are %.3g layers, more than a job holds (1e8)",
+                   d.n[2] * d.cell[2], d.layer, d.n[2] * d.cell[2] / d.layer), NULL;
   if (!isfinite(d.angle)) return gr_fail(e, GR_EARG, "angle must be a number, got %g", d.angle), NULL;
   if (!isfinite(d.rotation)) return gr_fail(e, GR_EARG, "rotation must be a number, got %g", d.rotation), NULL;
   if (d.beam_offset < 0) d.beam_offset = d.hatch / 2;

@@ -12,6 +12,10 @@
 #include "paths.h"
 
 #define GR_MAX_LASERS 16
+/* Voxels a job holds at most: 1e8 (about 2 GB of per-voxel state, and a
+ * 928 mm cube of 2 mm cells, beyond any powder bed); cells of 1000 x 1000 x
+ * 1000 (10 x 10 x 10 meant) are refused at once instead of allocating. */
+#define GR_MAX_VOXELS 1e8
 /* Default overlap of two lasers' scans where they meet, mm: a moderate
  * overlap (source in doc/formats.md, machine profile). */
 #define GR_STITCH_DEFAULT 0.5
@@ -124,6 +128,9 @@ gr_job_opts gr_job_defaults(void);
 
 typedef struct gr_job gr_job;
 gr_job *gr_job_new(const gr_job_opts *o, gr_err *e);
+/* GR_EARG (the count, the limit and the part's size in the message) when n
+ * cells along x, y, z of size cell are more voxels than GR_MAX_VOXELS. */
+int gr_job_check_size(const int n[3], const double cell[3], gr_err *e);
 void gr_job_free(gr_job *j);
 /* Add a spec; returns its index (>= 0) or -1 with e set. */
 int gr_job_add_spec(gr_job *j, const gr_spec *s, gr_err *e);

@@ -229,6 +229,7 @@ local function run(p, out)
   p = checked(p)
   local box = part.box(p)
   local cells, origin = box.cells, p.origin
+  gradus.place.check_size(cells, p.cell) -- before the domain's mesh and the voxels' loops over that box
   local domain = box.domain(domain_of(p.domain, origin, cells, p.cell, p))
   if not domain and p.skin > 0 then
     error(("parameter 'skin' (%g mm) is a solid band along the domain's boundary, and there is no domain: "

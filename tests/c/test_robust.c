@@ -10,6 +10,7 @@
 #include "cli.h"
 #include "expr.h"
 #include "mesh.h"
+#include "place.h"
 
 static int count_layer(void *ud, const gr_layer *l, gr_err *e) {
   (void)e;
@@ -130,6 +131,38 @@ TEST(expr_stack) {
   gr_expr_free(x);
 }
 
+TEST(job_too_many_voxels) {
+  /* 100000 x 100000 x 1 cells: the voxel count (1e10) overflowed an int
+   * before the arrays were sized; 1000^3 (10^3 meant) allocated for
+   * minutes. Both are refused at once; 1e8 voxels is the bound. */
+  gr_job_opts o = gr_job_defaults();
+  const int n[3][3] = {{100000, 100000, 1}, {1000, 1000, 1000}, {1000, 1000, 101}};
+  for (int c = 0; c < 3; c++) {
+    memcpy(o.n, n[c], sizeof o.n);
+    gr_err e;
+    gr_err_clear(&e);
+    gr_job *j = gr_job_new(&o, &e);
+    CHECK(!j && e.code == GR_EARG && strstr(e.msg, "more than a job holds"), "case %d: %s", c, e.msg);
+    gr_job_free(j);
+  }
+  /* 1000 cells of 1000 mm in layers of 1e-4 mm: 1e10 layers, more than an int counts */
+  o.n[0] = o.n[1] = 1;
+  o.n[2] = 1000;
+  o.cell[0] = o.cell[1] = o.cell[2] = 1000;
+  o.layer = 1e-4;
+  o.hatch = 1;
+  gr_err e2;
+  gr_err_clear(&e2);
+  gr_job *j = gr_job_new(&o, &e2);
+  CHECK(!j && e2.code == GR_EARG && strstr(e2.msg, "layers, more than a job holds"), "layers: %s", e2.msg);
+  gr_job_free(j);
+  o = gr_job_defaults();
+  int ok[3] = {1000, 1000, 100};
+  gr_err e;
+  gr_err_clear(&e);
+  CHECK(gr_job_check_size(ok, o.cell, &e) == GR_OK, "1e8 voxels are allowed: %s", e.msg);
+}
+
 int main(void) {
   RUN(cli_empty_polyline);
   RUN(cli_huge_count);
@@ -137,5 +170,6 @@ int main(void) {
   RUN(ply_huge_count);
   RUN(mesh_mem_reader);
   RUN(expr_stack);
+  RUN(job_too_many_voxels);
   DONE();
 }

@@ -109,6 +109,7 @@ check_range "cell=nan" cell=nan "parameter 'cell' must be a number in \[0.1, 100
 check_range "hatch for a 100 mm cell" "cell=100 -D hatch=0.04" "parameter 'hatch' must be at least cell/2000 = 0.05 mm"
 check_range "size and cells both given" "size=5,5,1 -D cells=3,3,1" "parameters 'size' and 'cells' both given \(size=5,5,1, cells=3,3,1\)"
 check_range "lasers beside a machine profile of another count" "lasers=3 -D machine=$ROOT/recipes/machine.yaml" "parameters 'lasers' and 'machine' both given \(lasers=3, machine=.*machine.yaml with 2\)"
+check_range "cells=1000,1000,1000 (10,10,10 meant)" cells=1000,1000,1000 "cells 1000 x 1000 x 1000 are 1e\+09 voxels, more than a job holds \(1e\+08\): a part of 2000 x 2000 x 2000 mm"
 check_range "a skin with no domain" skin=0.3 "parameter 'skin' \(0.3 mm\) is a solid band along the domain's boundary, and there is no domain"
 check_range "an inside thickness for a network" "kind=network -D inside=0.05" "bad option 'inside' \(the inside half-thickness of an asymmetric sheet: a network has one side"
 check_range "a picture of a layer the job does not have" pictures=999 "bad pictures '999': layer 999 is not one of the job's 50 layers"
