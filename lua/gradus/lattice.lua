@@ -224,52 +224,22 @@ end
 -- or an STL file); p.skin (mm).
 -- Writes the CLI to `out`, the manifest beside it, stats to --stats, and SVG
 -- pictures of p.pictures layers. Returns the stats table.
-local function run(p, out)
-  strict.action()
-  p = checked(p)
-  local box = part.box(p)
-  local cells, origin = box.cells, p.origin
-  gradus.place.check_size(cells, p.cell) -- before the domain's mesh and the voxels' loops over that box
-  local domain = box.domain(domain_of(p.domain, origin, cells, p.cell, p))
-  if not domain and p.skin > 0 then
-    error(("parameter 'skin' (%g mm) is a solid band along the domain's boundary, and there is no domain: "
-      .. "give domain= (an STL file or an expression) or a size= that cuts cells"):format(p.skin), 2)
+-- The machine profile, or `lasers` identical lasers; a lasers count other
+-- than the profile's is refused (it would be ignored).
+local function machine_of(p)
+  if p.machine == "" then return lasers.default(p.lasers) end
+  local machine = lasers.load(p.machine)
+  if given(p, "lasers") and p.lasers ~= #machine.lasers then
+    error(("parameters 'lasers' and 'machine' both given (lasers=%d, machine=%s with %d): the profile's lasers are used; give one of them")
+      :format(p.lasers, p.machine, #machine.lasers), 3)
   end
-  local machine
-  if p.machine ~= "" then
-    machine = lasers.load(p.machine)
-    if given(p, "lasers") and p.lasers ~= #machine.lasers then
-      error(("parameters 'lasers' and 'machine' both given (lasers=%d, machine=%s with %d): the profile's lasers are used; give one of them")
-        :format(p.lasers, p.machine, #machine.lasers), 2)
-    end
-  else
-    machine = lasers.default(p.lasers)
-  end
-  local rg = require("gradus.regions").load(p.regions) -- nil without regions
-  if rg then
-    require("gradus.regions").fit(rg, p)
-    machine = require("gradus.regions").machine(rg, machine)
-  end
-  local job = gradus.place.job {
-    cell = p.cell, origin = origin, cells = cells, layer = p.layer, hatch = p.hatch,
-    beam_offset = p.beam_offset ~= "auto" and p.beam_offset or nil, contours = p.contours,
-    contour_first = p.contour_first, angle = p.angle, rotation = p.rotation, pattern = p.pattern,
-    alternate = p.alternate, res = p.res, mode = p.mode, quant = p.quant, threads = p.threads,
-    slice_cell = p.slice_cell ~= "auto" and p.slice_cell or nil, min_length = p.min_length,
-    faces = p.faces, verify = p.qualify and true or false,
-  }
-  job:machine(machine)
-  if rg then require("gradus.regions").job(rg, job) end
-  local specs = {}
-  local dens = require("gradus.density").prepare(p, origin, cells, out)
-  local function spec_of(surface, thickness, inside)
-    local key = surface .. "|" .. thickness .. "|" .. (inside or "")
-    if not specs[key] then
-      specs[key] = job:spec(dens and dens:spec(surface) or { surface = surface, level = p.level, kind = p.kind,
-        thickness = thickness, inside = inside ~= "" and inside or nil })
-    end
-    return specs[key]
-  end
+  return machine
+end
+
+-- Every voxel of the box into the job: its spec (spec_of(surface,
+-- thickness, inside)), laser (the rule's, the zones', or any that reaches
+-- it) and sequence key; a voxel the rule skips stays empty.
+local function place_voxels(job, p, machine, cells, origin, spec_of)
   local seqf = sequence.get(p.sequence)
   local nx, ny, nz = cells[1], cells[2], cells[3]
   local C = part.lengths(p.cell)
@@ -311,28 +281,27 @@ local function run(p, out)
       end
     end
   end
-  if domain then job:domain(domain, { skin = p.skin or 0 }) end
-  if dens then
-    dens:check(function(i, j, k)
-      local r = p.rule and p.rule(i, j, k, origin[1] + i * Lx, origin[2] + j * Ly, origin[3] + k * Lz) or {}
-      return not r.skip and (r.surface or p.surface) or nil
-    end)
-  end
-  local total = box.layers or job:layers()
+end
+
+-- The layers to compute (first, last), to keep (pictures and checks) and
+-- to check (verify), from p.layers, p.pictures and p.verify over a job of
+-- `total` layers (`top`: the part's own, when a size cuts the box). A
+-- picture or check of a layer the job does not have is refused (it would
+-- be skipped unseen); one outside layers=a:b is skipped (the tasks of a
+-- split job share the parameters).
+local function layer_choice(p, total, top)
   local first, last = parse_range(p.layers, total)
-  if box.layers and last > box.layers then last = box.layers end
-  if first < 1 then error(("bad layers '%s': layers are numbered from 1"):format(tostring(p.layers)), 2) end
-  -- layers to draw (pictures) or check (verify): numbers among the job's layers, or the job would skip them
-  -- unseen (those outside a range of layers=a:b are skipped: a split job's tasks share the parameters)
+  if top and last > top then last = top end
+  if first < 1 then error(("bad layers '%s': layers are numbered from 1"):format(tostring(p.layers)), 3) end
   local function layer_list(name)
     local list = {}
     for item in tostring(p[name]):gmatch("[^,]+") do
       local g = tonumber(item)
       if not g or g ~= math.floor(g) then
-        error(("bad %s '%s': layer numbers a,b,c expected"):format(name, tostring(p[name])), 3)
+        error(("bad %s '%s': layer numbers a,b,c expected"):format(name, tostring(p[name])), 4)
       end
       if g < 1 or g > total then
-        error(("bad %s '%s': layer %d is not one of the job's %d layers"):format(name, tostring(p[name]), g, total), 3)
+        error(("bad %s '%s': layer %d is not one of the job's %d layers"):format(name, tostring(p[name]), g, total), 4)
       end
       list[#list + 1] = g
     end
@@ -340,19 +309,125 @@ local function run(p, out)
   end
   local keep, checks = layer_list("pictures"), layer_list("verify")
   for _, g in ipairs(checks) do keep[#keep + 1] = g end
-  local kb = p.kb
-  if kb == "" then kb = nil end
-  -- the output's extension and format= must agree (an OVF file named .cli goes to a machine as CLI)
+  return first, last, keep, checks
+end
+
+-- The output's format: OVF for a .ovf output; its extension and format=
+-- must agree (an OVF file named .cli would go to a machine as CLI).
+local function output_format(p, out)
   local ext = out and out:lower():match("%.(%w+)$")
   if ext == "ovf" and given(p, "format") and p.format ~= "ovf" then
     error(("parameter 'format' (%s) and the output %s disagree: a .ovf file is Open Vector Format; name it .cli or drop format")
-      :format(p.format, out), 2)
+      :format(p.format, out), 3)
   end
   if ext == "cli" and p.format == "ovf" then
-    error(("parameter 'format' (ovf) and the output %s disagree: Open Vector Format goes to a .ovf file"):format(out), 2)
+    error(("parameter 'format' (ovf) and the output %s disagree: Open Vector Format goes to a .ovf file"):format(out), 3)
   end
+  return ext == "ovf" and "ovf" or p.format
+end
+
+-- SVG (and PNG) pictures of the kept layers beside the output; their paths.
+local function pictures(out, keep, kept)
+  local pics = {}
+  for _, g in ipairs(keep) do
+    if kept[g] and out then
+      local base = stem(out or "out/layer")
+      local path = ("%s_layer%d.svg"):format(base, g)
+      gradus.svg.layer(path, kept[g], { title = ("layer %d, z = %.3f mm"):format(g, kept[g]:z()), jumps = true })
+      pics[#pics + 1] = path
+      if gradus.png then
+        local png = ("%s_layer%d.png"):format(base, g)
+        gradus.png.layer(png, kept[g], { width = 900, title = ("layer %d"):format(g), jumps = false })
+        pics[#pics + 1] = png
+      end
+    end
+  end
+  return pics
+end
+
+-- Quality of the checked layers on voxel (0,0,k): the vectors against the
+-- true section (the graded offset field sliced directly, 4x finer grid).
+local function layer_quality(p, st, kept, checks, origin)
+  local C = part.lengths(p.cell)
+  local Lx, Ly, Lz = C[1], C[2], C[3]
+  local d, b = p.hatch, st.effective.beam_offset
+  local q = { pore_max = 0, overmelt_max = 0, contour_dev_max_mm = 0, layers = {} }
+  local truths = {}
+  for _, g in ipairs(checks) do
+    if kept[g] then
+      local zm = origin[3] + g * p.layer - p.layer / 2
+      local k = math.floor((zm - origin[3]) / Lz)
+      if not truths[k] then
+        truths[k] = gradus.distance.offset { surface = p.surface, cell = { Lx, Ly, Lz }, origin = origin,
+          lo = { origin[1], origin[2], origin[3] + k * Lz }, hi = { origin[1] + Lx, origin[2] + Ly, origin[3] + (k + 1) * Lz },
+          res = p.res, thickness = tonumber(p.thickness) or p.thickness, kind = p.kind, mode = "exact", level = p.level }
+      end
+      local m = b + p.contours * d + 0.1
+      local sec = gradus.slice.field(truths[k], zm, { lo = { origin[1] - m, origin[2] - m },
+        hi = { origin[1] + Lx + m, origin[2] + Ly + m }, cell = d / 8 })
+      local r = gradus.hatch.verify(sec, kept[g], { track = d, pixel = d / 20, offset = b, spacing = d,
+        contours = math.max(1, p.contours), clip_lo = { origin[1], origin[2] }, clip_hi = { origin[1] + Lx, origin[2] + Ly } })
+      q.pore_max = math.max(q.pore_max, r.pore)
+      q.overmelt_max = math.max(q.overmelt_max, r.overmelt)
+      q.contour_dev_max_mm = math.max(q.contour_dev_max_mm, r.max_dev)
+      q.layers[#q.layers + 1] = { layer = g, pore = r.pore, overmelt = r.overmelt, contour_dev_max_mm = r.max_dev }
+    end
+  end
+  return q
+end
+
+local function run(p, out)
+  strict.action()
+  p = checked(p)
+  local format = output_format(p, out)
+  local box = part.box(p)
+  local cells, origin = box.cells, p.origin
+  gradus.place.check_size(cells, p.cell) -- before the domain's mesh and the voxels' loops over that box
+  local domain = box.domain(domain_of(p.domain, origin, cells, p.cell, p))
+  if not domain and p.skin > 0 then
+    error(("parameter 'skin' (%g mm) is a solid band along the domain's boundary, and there is no domain: "
+      .. "give domain= (an STL file or an expression) or a size= that cuts cells"):format(p.skin), 2)
+  end
+  local machine = machine_of(p)
+  local rg = require("gradus.regions").load(p.regions) -- nil without regions
+  if rg then
+    require("gradus.regions").fit(rg, p)
+    machine = require("gradus.regions").machine(rg, machine)
+  end
+  local job = gradus.place.job {
+    cell = p.cell, origin = origin, cells = cells, layer = p.layer, hatch = p.hatch,
+    beam_offset = p.beam_offset ~= "auto" and p.beam_offset or nil, contours = p.contours,
+    contour_first = p.contour_first, angle = p.angle, rotation = p.rotation, pattern = p.pattern,
+    alternate = p.alternate, res = p.res, mode = p.mode, quant = p.quant, threads = p.threads,
+    slice_cell = p.slice_cell ~= "auto" and p.slice_cell or nil, min_length = p.min_length,
+    faces = p.faces, verify = p.qualify and true or false,
+  }
+  job:machine(machine)
+  if rg then require("gradus.regions").job(rg, job) end
+  local specs = {}
+  local dens = require("gradus.density").prepare(p, origin, cells, out)
+  local function spec_of(surface, thickness, inside)
+    local key = surface .. "|" .. thickness .. "|" .. (inside or "")
+    if not specs[key] then
+      specs[key] = job:spec(dens and dens:spec(surface) or { surface = surface, level = p.level, kind = p.kind,
+        thickness = thickness, inside = inside ~= "" and inside or nil })
+    end
+    return specs[key]
+  end
+  place_voxels(job, p, machine, cells, origin, spec_of)
+  if domain then job:domain(domain, { skin = p.skin or 0 }) end
+  if dens then
+    local C = part.lengths(p.cell)
+    local Lx, Ly, Lz = C[1], C[2], C[3]
+    dens:check(function(i, j, k)
+      local r = p.rule and p.rule(i, j, k, origin[1] + i * Lx, origin[2] + j * Ly, origin[3] + k * Lz) or {}
+      return not r.skip and (r.surface or p.surface) or nil
+    end)
+  end
+  local first, last, keep, checks = layer_choice(p, box.layers or job:layers(), box.layers)
+  local kb = p.kb
+  if kb == "" then kb = nil end
   if out then gradus.mkdir(gradus.dirname(out)) end
-  local format = ext == "ovf" and "ovf" or p.format
   local styles = {}
   for l, las in ipairs(machine.lasers) do
     for kindi, kind in ipairs({ "contour", "hatch", "edge" }) do
@@ -384,49 +459,8 @@ local function run(p, out)
       styles = styles,
     })
   end
-  local pics = {}
-  for _, g in ipairs(keep) do
-    if kept[g] and out then
-      local base = stem(out or "out/layer")
-      local path = ("%s_layer%d.svg"):format(base, g)
-      gradus.svg.layer(path, kept[g], { title = ("layer %d, z = %.3f mm"):format(g, kept[g]:z()), jumps = true })
-      pics[#pics + 1] = path
-      if gradus.png then
-        local png = ("%s_layer%d.png"):format(base, g)
-        gradus.png.layer(png, kept[g], { width = 900, title = ("layer %d"):format(g), jumps = false })
-        pics[#pics + 1] = png
-      end
-    end
-  end
-  st.pictures = pics
-  -- quality of the checked layers on voxel (0,0,k): the vectors against the
-  -- true section (the graded offset field sliced directly, 4x finer grid)
-  if #checks > 0 then
-    local d, b = p.hatch, st.effective.beam_offset
-    local q = { pore_max = 0, overmelt_max = 0, contour_dev_max_mm = 0, layers = {} }
-    local truths = {}
-    for _, g in ipairs(checks) do
-      if kept[g] then
-        local zm = origin[3] + g * p.layer - p.layer / 2
-        local k = math.floor((zm - origin[3]) / Lz)
-        if not truths[k] then
-          truths[k] = gradus.distance.offset { surface = p.surface, cell = { Lx, Ly, Lz }, origin = origin,
-            lo = { origin[1], origin[2], origin[3] + k * Lz }, hi = { origin[1] + Lx, origin[2] + Ly, origin[3] + (k + 1) * Lz },
-            res = p.res, thickness = tonumber(p.thickness) or p.thickness, kind = p.kind, mode = "exact", level = p.level }
-        end
-        local m = b + p.contours * d + 0.1
-        local sec = gradus.slice.field(truths[k], zm, { lo = { origin[1] - m, origin[2] - m },
-          hi = { origin[1] + Lx + m, origin[2] + Ly + m }, cell = d / 8 })
-        local r = gradus.hatch.verify(sec, kept[g], { track = d, pixel = d / 20, offset = b, spacing = d,
-          contours = math.max(1, p.contours), clip_lo = { origin[1], origin[2] }, clip_hi = { origin[1] + Lx, origin[2] + Ly } })
-        q.pore_max = math.max(q.pore_max, r.pore)
-        q.overmelt_max = math.max(q.overmelt_max, r.overmelt)
-        q.contour_dev_max_mm = math.max(q.contour_dev_max_mm, r.max_dev)
-        q.layers[#q.layers + 1] = { layer = g, pore = r.pore, overmelt = r.overmelt, contour_dev_max_mm = r.max_dev }
-      end
-    end
-    st.quality = q
-  end
+  st.pictures = pictures(out, keep, kept)
+  if #checks > 0 then st.quality = layer_quality(p, st, kept, checks, origin) end
   if dens and dens.target and out then
     st.density = dens:measure(gradus.outputs.stage(out), domain, p.beam_offset ~= "auto" and p.beam_offset or p.hatch / 2, p.layer)
   end
