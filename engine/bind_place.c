@@ -471,6 +471,64 @@ static void sweep_kb(gr_kb *kb) {
 
 /* job:run{output=, format="ascii"|"binary", kb=dir|true|false, direct=,
  *         first=, last=, keep={g...}, split=, quiet=} -> stats, kept layers */
+/* The writers of a job's output (staged paths outs[]): one OVF file (the
+ * lasers inside it), or a CLI file and, with split, one per laser. */
+static int open_outputs(lua_State *L, sinkctx *s, const gr_job_opts *o, int ovf, const char *const *outs,
+                        const gr_cli_header *h, gr_err *e) {
+  if (ovf) {
+    s->ovf = gr_lua_ovf_open(L, 2, outs[0], o, h->layers, e);
+    return s->ovf ? GR_OK : e->code ? e->code : GR_EIO;
+  }
+  for (int la = -1; la < (s->split ? o->nlasers : 0); la++)
+    if (!(s->w[la + 1] = gr_cli_open(outs[la + 1], h, e))) return e->code ? e->code : GR_EIO;
+  return GR_OK;
+}
+
+/* What the output holds (ascii, long, short, short+long, ovf; NULL: no
+ * output) and the zero-length marks the short form's rounding left out. */
+typedef struct outform { const char *form; long rpts, rvec; } outform;
+
+/* Commit every writer if the job went well (rc == GR_OK), else remove the
+ * temporaries; what was written into *of. Returns rc, or the first close's
+ * error (into *e). */
+static int close_outputs(sinkctx *s, gr_job *j, int rc, gr_err *e, outform *of) {
+  of->form = s->ovf ? "ovf" : s->w[0] ? gr_cli_form(s->w[0]) : NULL;
+  of->rpts = of->rvec = 0;
+  if (s->w[0]) gr_cli_rounded(s->w[0], &of->rpts, &of->rvec);
+  for (int w = 0; w <= GR_MAX_LASERS; w++) {
+    if (!s->w[w]) continue;
+    gr_err e2;
+    gr_err_clear(&e2);
+    int crc = gr_cli_close(s->w[w], rc == GR_OK, &e2);
+    if (rc == GR_OK && crc) { rc = crc; *e = e2; }
+  }
+  if (s->ovf) {
+    gr_err e2;
+    gr_err_clear(&e2);
+    gr_ovf_set_volume(s->ovf, gr_job_get_stats(j)->solid_area * gr_job_options(j)->layer);
+    int crc = gr_ovf_close(s->ovf, rc == GR_OK, &e2);
+    if (rc == GR_OK && crc) { rc = crc; *e = e2; }
+  }
+  return rc;
+}
+
+/* stats.form and, where the short form left marks out, stats.rounded_out
+ * (said, since the file then holds fewer points than the stats count). */
+static void push_form(lua_State *L, const outform *of) {
+  if (of->form) {
+    lua_pushstring(L, of->form);
+    lua_setfield(L, -2, "form");
+  }
+  if (of->rpts || of->rvec) {
+    lua_createtable(L, 0, 2);
+    lua_pushinteger(L, of->rpts);
+    lua_setfield(L, -2, "points");
+    lua_pushinteger(L, of->rvec);
+    lua_setfield(L, -2, "vectors");
+    lua_setfield(L, -2, "rounded_out");
+  }
+}
+
 static int l_run(lua_State *L) {
   gr_job *j = check_job(L, 1);
   luaL_checktype(L, 2, LUA_TTABLE);
@@ -573,41 +631,15 @@ static int l_run(lua_State *L) {
     if (!kb) rc = e.code ? e.code : GR_EIO;
     else sweep_kb(kb);
   }
-  if (rc == GR_OK && out && !strcmp(format, "ovf")) {
-    s.ovf = gr_lua_ovf_open(L, 2, outs[0], o, h.layers, &e); /* one file: the lasers are inside */
-    if (!s.ovf) rc = e.code ? e.code : GR_EIO;
-  } else if (rc == GR_OK && out) {
-    s.w[0] = gr_cli_open(outs[0], &h, &e);
-    if (!s.w[0]) rc = e.code ? e.code : GR_EIO;
-    for (int la = 0; s.split && rc == GR_OK && la < o->nlasers; la++) {
-      s.w[la + 1] = gr_cli_open(outs[la + 1], &h, &e);
-      if (!s.w[la + 1]) rc = e.code ? e.code : GR_EIO;
-    }
-  }
+  if (rc == GR_OK && out) rc = open_outputs(L, &s, o, !strcmp(format, "ovf"), outs, &h, &e);
   if (rc == GR_OK) {
     r.kb = kb;
     r.sink = sink;
     r.sink_ud = &s;
     rc = gr_job_run(j, &r, &e);
   }
-  /* commit every writer only if everything went well; else remove temporaries */
-  const char *form = s.ovf ? "ovf" : s.w[0] ? gr_cli_form(s.w[0]) : NULL;
-  long rpts = 0, rvec = 0; /* zero-length marks the short form's rounding left out */
-  if (s.w[0]) gr_cli_rounded(s.w[0], &rpts, &rvec);
-  for (int w = 0; w <= GR_MAX_LASERS; w++) {
-    if (!s.w[w]) continue;
-    gr_err e2;
-    gr_err_clear(&e2);
-    int crc = gr_cli_close(s.w[w], rc == GR_OK, &e2);
-    if (rc == GR_OK && crc) { rc = crc; e = e2; }
-  }
-  if (s.ovf) {
-    gr_err e2;
-    gr_err_clear(&e2);
-    gr_ovf_set_volume(s.ovf, gr_job_get_stats(j)->solid_area * o->layer);
-    int crc = gr_ovf_close(s.ovf, rc == GR_OK, &e2);
-    if (rc == GR_OK && crc) { rc = crc; e = e2; }
-  }
+  outform of;
+  rc = close_outputs(&s, j, rc, &e, &of);
   gr_kb_close(kb);
   if (gr_job_get_stats(j)->kb_corrupt) /* also in the stats; said here so that nobody misses it */
     fprintf(stderr, "gradus: knowledge base %s: %d damaged record(s) rebuilt (%s)\n", kbdir,
@@ -621,18 +653,7 @@ static int l_run(lua_State *L) {
     return gr_lua_error(L, &e);
   }
   push_stats(L, j, &s, h.units);
-  if (form) { /* what the output holds: ascii, long, short, short+long, ovf */
-    lua_pushstring(L, form);
-    lua_setfield(L, -2, "form");
-  }
-  if (rpts || rvec) { /* said, since the file then holds fewer points than the stats count */
-    lua_createtable(L, 0, 2);
-    lua_pushinteger(L, rpts);
-    lua_setfield(L, -2, "points");
-    lua_pushinteger(L, rvec);
-    lua_setfield(L, -2, "vectors");
-    lua_setfield(L, -2, "rounded_out");
-  }
+  push_form(L, &of);
   lua_newtable(L);
   for (int i = 0; i < nkeep; i++) {
     if (!s.kept[i]) continue;
