@@ -212,6 +212,12 @@ local function parse(args)
   return o
 end
 
+-- A file that cannot be read or written: said without our own source's position; exit status 1.
+local function failed(e)
+  eprint("gradus: view: " .. (tostring(e):gsub("^[^\n]-%.lua:%d+: ", "")))
+  return 1
+end
+
 --- gradus view ...: returns the exit status.
 function M.main(args)
   local o, err = parse(args)
@@ -226,12 +232,14 @@ function M.main(args)
         return 2
       end
     end
-    M.serve(o.cli, port, opts)
+    local ok, e = pcall(M.serve, o.cli, port, opts)
+    if not ok then return failed(e) end
     return 0
   end
   local out = o["-o"] or (o.cli:gsub("%.[Cc][Ll][Ii]$", "") .. ".html")
   if out == o.cli then out = o.cli .. ".html" end
-  local d = M.write(o.cli, out, opts)
+  local ok, d = pcall(M.write, o.cli, out, opts)
+  if not ok then return failed(d) end
   print(("gradus view: %s (%d layers) -> %s"):format(o.cli, d.layers, out))
   return 0
 end

@@ -40,6 +40,7 @@ expect "non-CLI file refused" "not.cli:1: not a CLI file" "$out"
 [ $rc != 0 ] && [ ! -e "$d/not.html" ] && pass "non-CLI: exit non-zero, no HTML" || fail "non-CLI: no HTML" "rc=$rc"
 out=$($G view "$d/none.cli" 2>&1); rc=$?
 expect "missing file" "cannot read $d/none.cli" "$out"; [ $rc != 0 ] && pass "missing: exit non-zero" || fail "missing" "rc=$rc"
+case "$out" in *.lua:*) fail "missing file: no source position" "$out" ;; *) pass "missing file: no source position in the message" ;; esac
 out=$($G view "$d/two.cli" --frob 2>&1); rc=$?
 expect "unknown option" "unknown option --frob" "$out"; [ $rc = 2 ] && pass "bad option exit 2" || fail "bad option" "rc=$rc"
 
