@@ -90,6 +90,8 @@ out=$($G kb show "$key" "$d/kbc" 2>&1); expect "kb show KEY DIR" "^signature: .*
 out=$($G kb verify "$d/kbc" 2>&1); rc=$?; expect "kb verify" "^ok: 1" "$out"; [ $rc = 0 ] && pass "kb verify exit 0" || fail "kb verify exit" "rc=$rc"
 out=$($G kb prune --older-than 1 "$d/kbc" 2>&1); expect "kb prune keeps a new template" "^removed: 0" "$out"
 out=$($G kb prune --older-than 0 "$d/kbc" 2>&1); expect "kb prune --older-than 0 removes it" "^removed: 1" "$out"
+out=$($G kb list "$d/kbtypo" 2>&1); rc=$?; expect "kb list of a missing directory" "no knowledge base at $d/kbtypo \(no such directory\)" "$out"
+[ $rc = 1 ] && [ ! -e "$d/kbtypo" ] && pass "kb list of a missing directory: exit 1, nothing created" || fail "kb list of a missing directory" "rc=$rc, $(ls "$d")"
 out=$($G kb list --frob 2>&1); rc=$?; expect "kb unknown option" "unknown option --frob" "$out"; [ $rc = 2 ] && pass "kb bad option exit 2" || fail "kb bad option exit" "rc=$rc"
 out=$($G kb prune --older-than soon "$d/kbc" 2>&1); rc=$?; expect "kb prune bad days" "--older-than needs a number of days" "$out"; [ $rc = 2 ] && pass "kb bad days exit 2" || fail "kb bad days exit" "rc=$rc"
 # gradus cli info: a binary CLI written by a run, then the same file truncated, and a missing file
