@@ -133,8 +133,8 @@ static int short_block(gr_cli_writer *w, const gr_block *bk, const double *p, in
   size_t cnt = seg ? bk->n / 2 : bk->n, npts = seg ? 2 * cnt : cnt, hd = seg ? 6 : 8;
   *done = 0;
   if (id < 0 || id > 65535 || cnt > 65535) return GR_OK;
-  for (size_t q = 0; q < 2 * bk->n; q++) if (short_of(p[q] / u) < 0) return GR_OK;
-  /* convert straight into the reserved room */
+  /* convert straight into the reserved room; a coordinate that does not
+   * fit abandons it (w->o.n not advanced: nothing written) */
   if (reserve(w, hd + 4 * npts, e)) return e->code;
   unsigned char *o = (unsigned char *)w->o.buf + w->o.n + hd;
   size_t kept = 0; /* polylines: points; hatches: vectors */
@@ -142,11 +142,13 @@ static int short_block(gr_cli_writer *w, const gr_block *bk, const double *p, in
   for (size_t k = 0; k < cnt; k++) {
     if (seg) {
       long c[4];
-      for (int i = 0; i < 4; i++) c[i] = short_of(p[4 * k + i] / u);
+      for (int i = 0; i < 4; i++)
+        if ((c[i] = short_of(p[4 * k + i] / u)) < 0) return GR_OK;
       if (c[0] == c[2] && c[1] == c[3]) continue;
       for (int i = 0; i < 4; i++) put_u16(o + 8 * kept + 2 * i, (unsigned)c[i]);
     } else {
       long cx = short_of(p[2 * k] / u), cy = short_of(p[2 * k + 1] / u);
+      if (cx < 0 || cy < 0) return GR_OK;
       if (cx == px && cy == py) continue;
       put_u16(o + 4 * kept, (unsigned)cx);
       put_u16(o + 4 * kept + 2, (unsigned)cy);
@@ -155,6 +157,7 @@ static int short_block(gr_cli_writer *w, const gr_block *bk, const double *p, in
     }
     kept++;
   }
+  for (size_t q = 2 * npts; q < 2 * bk->n; q++) if (short_of(p[q] / u) < 0) return GR_OK; /* an odd segment end */
   if (!seg && kept == 1 && cnt > 1) { /* a dot: its point twice */
     memcpy(o + 4, o, 4);
     kept = 2;

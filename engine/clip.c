@@ -58,11 +58,11 @@ static size_t first_out(const double *p, size_t n, int owned, const double lo[2]
   return n;
 }
 
-/* gr_clip_poly and gr_clip_ring_owned (owned: p already snapped). */
+/* gr_clip_poly and gr_clip_ring_owned (owned: a closed ring, p already snapped). */
 static int clip_poly(const double *p, size_t n, int closed, int kind, int dir, int owned, const double lo[2],
                      const double hi[2], gr_layer *out, double *bf) {
   int odir = gr_clip_open_dir(dir);
-  size_t s0 = first_out(p, n, owned && closed, lo, hi);
+  size_t s0 = first_out(p, n, owned, lo, hi);
   if (!closed && s0 < n) s0 = 0; /* an open polyline's pieces follow it from its start */
   if (s0 == n) { /* wholly inside */
     memcpy(bf, p, n * 2 * sizeof(double));

@@ -290,7 +290,7 @@ int gr_tmpl_paths(const gr_job_opts *opt, gr_tlayer *tl, int faces, gr_err *e) {
     if (bk->kind == GR_HATCH) continue;
     const double *xy = tmp->xy + 2 * bk->start;
     /* closed contours are oriented (inside on the left): one voxel scans a piece on a shared face */
-    int owned = bk->shape == GR_CLOSED && bk->kind == GR_CONTOUR && bk->dir != GR_DIR_THIN;
+    int owned = bk->shape == GR_CLOSED && bk->kind == GR_CONTOUR;
     if (owned ? gr_clip_ring_owned(xy, bk->n, bk->kind, bk->dir, box_lo, box_hi, tl->paths, &buf, &cap)
               : gr_clip_poly(xy, bk->n, bk->shape == GR_CLOSED, bk->kind, bk->dir, box_lo, box_hi, tl->paths, &buf, &cap))
       rc = gr_fail(e, GR_EMEM, "out of memory");

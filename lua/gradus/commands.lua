@@ -89,9 +89,9 @@ function M.kb(args)
   local dir = o["--dir"] or pos[want] or gradus.kb.default_dir()
   if pos[want] and o["--dir"] then eprint("gradus: kb: the directory is given twice\n" .. KB_USAGE) return 2 end
   -- a misspelled directory is no empty knowledge base (the default one may not exist yet)
-  if (o["--dir"] or pos[want]) and gradus.fs.kind(dir) ~= "directory" then
-    eprint(("gradus: kb: no knowledge base at %s (%s)"):format(dir,
-      gradus.fs.kind(dir) and "not a directory" or "no such directory"))
+  local kind = (o["--dir"] or pos[want]) and (gradus.fs.kind(dir) or "absent")
+  if kind and kind ~= "directory" then
+    eprint(("gradus: kb: no knowledge base at %s (%s)"):format(dir, kind == "absent" and "no such directory" or "not a directory"))
     return 1
   end
   if sub == "list" then

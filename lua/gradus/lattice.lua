@@ -285,13 +285,14 @@ end
 
 -- The layers to compute (first, last), to keep (pictures and checks) and
 -- to check (verify), from p.layers, p.pictures and p.verify over a job of
--- `total` layers (`top`: the part's own, when a size cuts the box). A
+-- `total` layers (`cut`: the part's own count, a size cutting the box, and
+-- a range past it is cut back to it). A
 -- picture or check of a layer the job does not have is refused (it would
 -- be skipped unseen); one outside layers=a:b is skipped (the tasks of a
 -- split job share the parameters).
-local function layer_choice(p, total, top)
+local function layer_choice(p, total, cut)
   local first, last = parse_range(p.layers, total)
-  if top and last > top then last = top end
+  if cut and last > total then last = total end
   if first < 1 then error(("bad layers '%s': layers are numbered from 1"):format(tostring(p.layers)), 3) end
   local function layer_list(name)
     local list = {}
@@ -424,7 +425,7 @@ local function run(p, out)
       return not r.skip and (r.surface or p.surface) or nil
     end)
   end
-  local first, last, keep, checks = layer_choice(p, box.layers or job:layers(), box.layers)
+  local first, last, keep, checks = layer_choice(p, box.layers or job:layers(), box.layers ~= nil)
   local kb = p.kb
   if kb == "" then kb = nil end
   if out then gradus.mkdir(gradus.dirname(out)) end
